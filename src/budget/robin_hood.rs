@@ -1,0 +1,387 @@
+//! The Robin Hood distribution (paper §5, equations 1–4).
+//!
+//! Every visible object gets a share of the rendering time proportional to its value
+//! (`t_i = v_i · t_r / v_f`); objects are visited simple → complex, and whatever an
+//! object cannot use goes back into the pot for the objects after it. No visible object
+//! is ever dropped: one whose cheapest representation does not fit its share is drawn
+//! time-critically (truncated).
+
+use alloc::vec::Vec;
+
+use super::problem::{Allocation, BudgetProblem, BudgetStats, BudgetStrategy, sanitize_time};
+
+/// What an object does with the time it is given.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Fit {
+    /// Predicted time of what the object will draw (seconds). May exceed the time given
+    /// only when `truncated` is set.
+    pub used: f32,
+    /// Which representation it draws (the object's own numbering).
+    pub level: u32,
+    /// Even the cheapest representation did not fit: it is drawn time-critically.
+    pub truncated: bool,
+}
+
+/// The best rung of a ladder (costs best → cheapest) that fits in `time`: the most
+/// expensive representation not exceeding it, found by binary search. When none fits,
+/// the cheapest, marked truncated (its full cost is reported as used, so the caller sees
+/// the overrun).
+///
+/// # Panics
+/// Never for a non-empty ladder; an empty ladder yields a zero-cost truncated fit.
+pub fn fit_ladder(costs: impl LadderCosts, time: f32) -> Fit {
+    let len = costs.len();
+    if len == 0 {
+        return Fit {
+            used: 0.0,
+            level: 0,
+            truncated: true,
+        };
+    }
+    // Costs are non-increasing, so "cost > time" holds on a prefix.
+    let (mut lo, mut hi) = (0, len);
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if costs.cost(mid) > time {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    if lo < len {
+        Fit {
+            used: costs.cost(lo),
+            level: lo as u32,
+            truncated: false,
+        }
+    } else {
+        Fit {
+            used: costs.cost(len - 1),
+            level: (len - 1) as u32,
+            truncated: true,
+        }
+    }
+}
+
+/// A ladder's costs, best → cheapest: a slice of costs or of [`Level`](super::Level)s.
+pub trait LadderCosts {
+    /// Number of representations.
+    fn len(&self) -> usize;
+    /// Whether there are none.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Cost of representation `index`.
+    fn cost(&self, index: usize) -> f32;
+}
+
+impl LadderCosts for &[f32] {
+    fn len(&self) -> usize {
+        <[f32]>::len(self)
+    }
+    fn cost(&self, index: usize) -> f32 {
+        self[index]
+    }
+}
+
+impl LadderCosts for &[super::Level] {
+    fn len(&self) -> usize {
+        <[super::Level]>::len(self)
+    }
+    fn cost(&self, index: usize) -> f32 {
+        self[index].cost
+    }
+}
+
+/// A semi-continuous representation, like a tree whose trunk and leaves can be drawn
+/// with any number of primitives: it uses as much of its time as it can, up to `full`,
+/// and never less than `minimum` (its cheapest drawable form).
+///
+/// The level reported is 0 at full detail, 1 for a partial drawing and 2 when truncated.
+pub fn fit_continuous(full: f32, minimum: f32, time: f32) -> Fit {
+    let full = full.max(0.0);
+    let minimum = minimum.clamp(0.0, full);
+    if time >= full {
+        Fit {
+            used: full,
+            level: 0,
+            truncated: false,
+        }
+    } else if time >= minimum {
+        Fit {
+            used: time,
+            level: 1,
+            truncated: false,
+        }
+    } else {
+        Fit {
+            used: minimum,
+            level: 2,
+            truncated: true,
+        }
+    }
+}
+
+/// The Robin Hood strategy. Keeps scratch buffers between frames, so reuse one value.
+#[derive(Clone, Debug, Default)]
+pub struct RobinHood {
+    order: Vec<u32>,
+    suffix_values: Vec<f64>,
+}
+
+impl RobinHood {
+    /// A Robin Hood distributor with empty scratch buffers.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The general form: `values[i]` and `complexities[i]` describe object `i`, and
+    /// `fit(i, time)` says what object `i` does with `time` seconds — a ladder search
+    /// ([`fit_ladder`]), a continuous form ([`fit_continuous`]) or anything else.
+    ///
+    /// Objects are visited in ascending complexity (ties keep input order). If the
+    /// complexities are already sorted — objects grouped by pre-sorted type — this costs
+    /// O(n); otherwise an O(n log n) sort runs on a scratch index buffer.
+    ///
+    /// NaN, negative or infinite values count as 0 (such objects get no time and are
+    /// drawn truncated); `slices` shorter than `values` are a caller bug and the extra
+    /// objects get 0 complexity.
+    pub fn distribute_with<F>(
+        &mut self,
+        values: &[f32],
+        complexities: &[f32],
+        rendering_time: f32,
+        mut fit: F,
+        allocations: &mut Vec<Allocation>,
+    ) -> BudgetStats
+    where
+        F: FnMut(usize, f32) -> Fit,
+    {
+        let n = values.len();
+        let rendering_time = sanitize_time(rendering_time);
+        allocations.clear();
+        allocations.resize(n, Allocation::DROPPED);
+        self.order_by_complexity(complexities, n);
+        let clean = |v: f32| {
+            if v.is_finite() && v > 0.0 {
+                f64::from(v)
+            } else {
+                0.0
+            }
+        };
+
+        // v_f for every suffix of the visiting order (P-1, P-4 without cancellation).
+        self.suffix_values.clear();
+        self.suffix_values.resize(n + 1, 0.0);
+        for k in (0..n).rev() {
+            let i = self.visit(k);
+            self.suffix_values[k] = self.suffix_values[k + 1] + clean(values[i]);
+        }
+
+        let mut remaining = f64::from(rendering_time);
+        for k in 0..n {
+            let i = self.visit(k);
+            let value = clean(values[i]);
+            let value_left = self.suffix_values[k];
+            let share = if value_left > 0.0 {
+                (value / value_left).min(1.0)
+            } else {
+                0.0
+            };
+            let given = remaining * share; // P-2
+            remaining -= given; // P-3
+            let given = given as f32;
+            let chosen = fit(i, given);
+            let used = if chosen.used.is_finite() {
+                chosen.used.max(0.0)
+            } else {
+                given
+            };
+            // Remainder back to the pot; an overrun is reported, not taken from others.
+            remaining += f64::from((given - used).max(0.0));
+            allocations[i] = Allocation {
+                given,
+                used,
+                level: Some(chosen.level),
+                truncated: chosen.truncated,
+            };
+        }
+        BudgetStats::from_allocations(rendering_time, allocations)
+    }
+
+    fn visit(&self, k: usize) -> usize {
+        if self.order.is_empty() {
+            k
+        } else {
+            self.order[k] as usize
+        }
+    }
+
+    /// Leaves `order` empty when the objects are already in visiting order.
+    fn order_by_complexity(&mut self, complexities: &[f32], n: usize) {
+        self.order.clear();
+        let key = |i: usize| complexities.get(i).copied().unwrap_or(0.0);
+        if (1..n).all(|i| key(i - 1) <= key(i)) {
+            return;
+        }
+        self.order.extend(0..n as u32);
+        self.order
+            .sort_by(|&a, &b| key(a as usize).total_cmp(&key(b as usize)));
+    }
+}
+
+impl BudgetStrategy for RobinHood {
+    fn name(&self) -> &'static str {
+        "Robin Hood"
+    }
+
+    fn distribute(
+        &mut self,
+        problem: &BudgetProblem,
+        rendering_time: f32,
+        allocations: &mut Vec<Allocation>,
+    ) -> BudgetStats {
+        self.distribute_with(
+            problem.values(),
+            problem.complexities(),
+            rendering_time,
+            |i, time| fit_ladder(problem.ladder(i), time),
+            allocations,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::budget::{Level, ObjectDesc};
+    use approx::assert_relative_eq;
+
+    fn ladder(costs: &[f32]) -> Vec<Level> {
+        costs.iter().map(|&c| Level::new(c, c)).collect()
+    }
+
+    fn problem(objects: &[(f32, f32, &[f32])]) -> BudgetProblem {
+        let mut p = BudgetProblem::new();
+        for &(value, complexity, costs) in objects {
+            p.push_object(
+                ObjectDesc {
+                    value,
+                    complexity,
+                    ..Default::default()
+                },
+                &ladder(costs),
+            )
+            .unwrap();
+        }
+        p
+    }
+
+    #[test]
+    fn ladder_search_picks_the_most_expensive_that_fits() {
+        let costs: &[f32] = &[8.0, 4.0, 2.0, 1.0];
+        assert_eq!(fit_ladder(costs, 10.0).level, 0);
+        assert_eq!(fit_ladder(costs, 8.0).level, 0);
+        assert_eq!(fit_ladder(costs, 7.9).level, 1);
+        assert_eq!(fit_ladder(costs, 1.0).level, 3);
+        let none = fit_ladder(costs, 0.5);
+        assert_eq!((none.level, none.used, none.truncated), (3, 1.0, true));
+    }
+
+    #[test]
+    fn shares_are_proportional_to_value_when_all_is_used() {
+        // Continuous objects use everything: t_i = v_i · t_r / v_f exactly.
+        let values = [1.0, 3.0, 4.0];
+        let mut out = Vec::new();
+        let stats = RobinHood::new().distribute_with(
+            &values,
+            &[0.0; 3],
+            8.0,
+            |_, t| fit_continuous(100.0, 0.0, t),
+            &mut out,
+        );
+        assert_relative_eq!(out[0].given, 1.0);
+        assert_relative_eq!(out[1].given, 3.0);
+        assert_relative_eq!(out[2].given, 4.0);
+        assert_relative_eq!(stats.used, 8.0);
+        assert_eq!(stats.wasted, 0.0);
+    }
+
+    /// Paper §5, first extreme case: a simple object with a large area gets more time than
+    /// it can use, and the complex object after it inherits the remainder.
+    #[test]
+    fn simple_object_with_large_area_hands_its_remainder_on() {
+        // Simple: best costs 1. Complex: best costs 9, then 5, then 2.
+        let p = problem(&[(9.0, 1.0, &[1.0, 0.5]), (1.0, 9.0, &[9.0, 5.0, 2.0])]);
+        let mut out = Vec::new();
+        let stats = RobinHood::new().distribute(&p, 10.0, &mut out);
+        // Simple gets 9, uses 1; complex gets 1 + 8 = 9 and draws its best level.
+        assert_relative_eq!(out[0].given, 9.0);
+        assert_eq!(out[0].level, Some(0));
+        assert_relative_eq!(out[1].given, 9.0);
+        assert_eq!(out[1].level, Some(0));
+        assert_relative_eq!(stats.used, 10.0);
+        assert_relative_eq!(stats.wasted, 0.0);
+    }
+
+    /// Paper §5, second extreme case: a complex object with a large area uses its share,
+    /// and the simple objects before it keep theirs.
+    #[test]
+    fn complex_object_with_large_area_uses_its_share() {
+        let p = problem(&[
+            (1.0, 1.0, &[1.0, 0.5]),
+            (1.0, 1.0, &[1.0, 0.5]),
+            (8.0, 9.0, &[9.0, 8.0, 2.0]),
+        ]);
+        let mut out = Vec::new();
+        let stats = RobinHood::new().distribute(&p, 10.0, &mut out);
+        assert_relative_eq!(out[0].given, 1.0);
+        assert_relative_eq!(out[1].given, 1.0);
+        assert_relative_eq!(out[2].given, 8.0);
+        assert_eq!(out[2].level, Some(1));
+        assert_relative_eq!(stats.used, 10.0);
+    }
+
+    #[test]
+    fn visits_simple_to_complex_whatever_the_input_order() {
+        // The complex object comes first in the input but must be visited last, so it
+        // can absorb the simple object's remainder.
+        let p = problem(&[(1.0, 9.0, &[9.0, 5.0, 2.0]), (9.0, 1.0, &[1.0, 0.5])]);
+        let mut out = Vec::new();
+        RobinHood::new().distribute(&p, 10.0, &mut out);
+        assert_eq!(out[0].level, Some(0));
+        assert_relative_eq!(out[0].given, 9.0);
+    }
+
+    #[test]
+    fn nothing_fits_means_truncated_but_drawn() {
+        let p = problem(&[(1.0, 1.0, &[4.0, 3.0]), (1.0, 2.0, &[4.0, 3.0])]);
+        let mut out = Vec::new();
+        let stats = RobinHood::new().distribute(&p, 1.0, &mut out);
+        assert!(out.iter().all(|a| a.truncated && a.level == Some(1)));
+        assert_eq!((stats.drawn, stats.dropped, stats.truncated), (2, 0, 2));
+        assert_relative_eq!(stats.overrun, 5.0);
+        // The first object's overrun does not starve the second.
+        assert_relative_eq!(out[1].given, 0.5);
+    }
+
+    #[test]
+    fn zero_time_or_values_never_produce_nan() {
+        let p = problem(&[(0.0, 1.0, &[1.0]), (0.0, 1.0, &[1.0])]);
+        for time in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            let mut out = Vec::new();
+            let stats = RobinHood::new().distribute(&p, time, &mut out);
+            assert!(out.iter().all(|a| a.given.is_finite() && a.given >= 0.0));
+            assert!(stats.used.is_finite() && stats.wasted.is_finite());
+            assert_eq!(stats.dropped, 0);
+        }
+    }
+
+    #[test]
+    fn continuous_fit_uses_what_it_can() {
+        assert_eq!(fit_continuous(4.0, 1.0, 9.0).used, 4.0);
+        assert_eq!(fit_continuous(4.0, 1.0, 2.5).used, 2.5);
+        let t = fit_continuous(4.0, 1.0, 0.5);
+        assert!(t.truncated && t.used == 1.0);
+    }
+}
