@@ -13,8 +13,7 @@ use bevy::transform::TransformSystems;
 /// The most used items: `use bevy_sherwood::prelude::*;`.
 pub mod prelude {
     pub use crate::budget::{
-        BudgetProblem, BudgetStats, BudgetStrategy, FrameTimeModel, Level, RobinHood,
-        ValueFunction,
+        BudgetProblem, BudgetStats, BudgetStrategy, FrameTimeModel, Level, RobinHood, ValueFunction,
     };
     pub use crate::{SherwoodCorePlugin, SherwoodPlugins, SherwoodSystems};
 }

@@ -94,7 +94,11 @@ mod tests {
         // t_l = 0.01, t_f = 0.04: ℓ = 1/16, ρ = 15/16, t_r = (15/16)²·0.04 / 2.
         let model = FrameTimeModel::new(2.0);
         let expected = (15.0_f32 / 16.0).powi(2) * 0.04 / 2.0;
-        assert_relative_eq!(model.rendering_time(0.01, 0.04), expected, max_relative = 1e-6);
+        assert_relative_eq!(
+            model.rendering_time(0.01, 0.04),
+            expected,
+            max_relative = 1e-6
+        );
     }
 
     #[test]
@@ -103,7 +107,10 @@ mod tests {
             let model = FrameTimeModel::new(c);
             for (tl, tf) in [(0.001, 0.0125), (0.02, 0.05), (0.15, 0.2), (0.0, 0.1)] {
                 let tr = model.rendering_time(tl, tf);
-                assert!(model.t614_residual(tl, tf, tr).abs() < 1e-5, "{c} {tl} {tf}");
+                assert!(
+                    model.t614_residual(tl, tf, tr).abs() < 1e-5,
+                    "{c} {tl} {tf}"
+                );
             }
         }
     }

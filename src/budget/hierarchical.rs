@@ -23,8 +23,7 @@ use alloc::vec;
 use alloc::vec::Vec;
 
 use super::problem::{
-    Allocation, BudgetProblem, BudgetStats, BudgetStrategy, Level, PreviousSelection,
-    sanitize_time,
+    Allocation, BudgetProblem, BudgetStats, BudgetStrategy, Level, PreviousSelection, sanitize_time,
 };
 
 /// Index of a node in a [`LodHierarchy`].
@@ -50,7 +49,9 @@ pub enum HierarchyError {
         impostor: usize,
     },
     /// Impostors must run best → cheapest, like every ladder.
-    #[error("node {node}, impostor {impostor}: costs must not increase (impostors run best → cheapest)")]
+    #[error(
+        "node {node}, impostor {impostor}: costs must not increase (impostors run best → cheapest)"
+    )]
     CostsIncreasing {
         /// The node it would have been.
         node: NodeId,
@@ -135,10 +136,15 @@ impl LodHierarchy {
         Ok(node)
     }
 
-    fn add_node(&mut self, children: &[NodeId], impostors: &[Level]) -> Result<NodeId, HierarchyError> {
+    fn add_node(
+        &mut self,
+        children: &[NodeId],
+        impostors: &[Level],
+    ) -> Result<NodeId, HierarchyError> {
         let node = self.len() as NodeId;
         for (impostor, l) in impostors.iter().enumerate() {
-            let ok = l.cost.is_finite() && l.benefit.is_finite() && l.cost >= 0.0 && l.benefit >= 0.0;
+            let ok =
+                l.cost.is_finite() && l.benefit.is_finite() && l.cost >= 0.0 && l.benefit >= 0.0;
             if !ok {
                 return Err(HierarchyError::InvalidImpostor { node, impostor });
             }
@@ -166,13 +172,19 @@ impl LodHierarchy {
 
     /// The node's children.
     pub fn children(&self, node: NodeId) -> &[NodeId] {
-        let (s, e) = (self.child_start[node as usize], self.child_end[node as usize]);
+        let (s, e) = (
+            self.child_start[node as usize],
+            self.child_end[node as usize],
+        );
         &self.children[s as usize..e as usize]
     }
 
     /// The node's impostors, best → cheapest.
     pub fn impostors(&self, node: NodeId) -> &[Level] {
-        let (s, e) = (self.impostor_start[node as usize], self.impostor_start[node as usize + 1]);
+        let (s, e) = (
+            self.impostor_start[node as usize],
+            self.impostor_start[node as usize + 1],
+        );
         &self.impostors[s as usize..e as usize]
     }
 
@@ -576,7 +588,11 @@ impl HierarchicalLod {
         let mut best: Option<(usize, u32, f64)> = None;
         for node in (0..root).rev() {
             let parent = Self::parent(h, node).unwrap_or(root);
-            let base = if parent == root { (0.0, 0.0) } else { others[parent] };
+            let base = if parent == root {
+                (0.0, 0.0)
+            } else {
+                others[parent]
+            };
             let c = base.0 + children_lowest[parent].0 - lowest[node].0;
             let b = base.1 + children_lowest[parent].1 - lowest[node].1;
             others[node] = (c, b);
@@ -698,13 +714,7 @@ impl BudgetStrategy for HierarchicalLod {
             let ladder = problem.ladder(object);
             match self.state[object] {
                 State::Explicit(k) if (k as usize) < ladder.len() => {
-                    let cost = ladder[k as usize].cost;
-                    Allocation {
-                        given: cost,
-                        used: cost,
-                        level: Some(k),
-                        truncated: false,
-                    }
+                    Allocation::drawn(ladder[k as usize].cost, k)
                 }
                 _ => Allocation::DROPPED,
             }

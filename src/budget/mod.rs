@@ -32,6 +32,7 @@ mod frame_model;
 mod funkhouser;
 mod heap;
 mod hierarchical;
+mod hull;
 pub mod oracle;
 mod problem;
 mod robin_hood;
@@ -39,13 +40,13 @@ mod triangle_budget;
 mod value;
 
 pub use frame_model::{FrameTimeModel, combined_frame_time};
-pub use funkhouser::{FunkhouserIncremental, FunkhouserSequin};
+pub use funkhouser::{FunkhouserIncremental, FunkhouserSequin, ValueOrdering};
 pub use hierarchical::{
     HierarchicalLod, HierarchyError, HierarchyOutcome, LodHierarchy, NodeId, NodeSelection,
 };
 pub use problem::{
-    Allocation, BudgetInputError, BudgetProblem, BudgetStats, BudgetStrategy, Level,
-    ObjectDesc, PreviousSelection,
+    Allocation, BudgetInputError, BudgetProblem, BudgetStats, BudgetStrategy, Level, ObjectDesc,
+    PreviousSelection,
 };
 pub use robin_hood::{Fit, LadderCosts, RobinHood, fit_continuous, fit_ladder};
 pub use triangle_budget::TriangleBudget;

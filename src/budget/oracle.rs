@@ -8,6 +8,7 @@
 use alloc::vec::Vec;
 
 use super::hierarchical::{LodHierarchy, NodeId};
+use super::hull::upper_hull;
 use super::problem::{BudgetProblem, sanitize_time};
 
 /// Frontier points the exact solvers may hold at once before giving up.
@@ -17,7 +18,9 @@ pub const MAX_FRONTIER: usize = 1 << 20;
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum OracleError {
     /// The instance is too large for the exact dynamic programme.
-    #[error("instance too large for the exact optimum: the Pareto frontier exceeded {MAX_FRONTIER} points")]
+    #[error(
+        "instance too large for the exact optimum: the Pareto frontier exceeded {MAX_FRONTIER} points"
+    )]
     TooLarge,
 }
 
@@ -44,7 +47,11 @@ struct Point {
 
 /// Keeps only points not dominated by a cheaper point with at least the same benefit.
 fn prune(points: &mut Vec<Point>) {
-    points.sort_by(|a, b| a.cost.total_cmp(&b.cost).then(b.benefit.total_cmp(&a.benefit)));
+    points.sort_by(|a, b| {
+        a.cost
+            .total_cmp(&b.cost)
+            .then(b.benefit.total_cmp(&a.benefit))
+    });
     let mut best = f64::NEG_INFINITY;
     points.retain(|p| {
         if p.benefit > best {
@@ -123,52 +130,25 @@ pub fn optimal_selection(
 /// the benefit any selection within `budget` can reach. O(L log L) for L levels.
 pub fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
     let budget = f64::from(sanitize_time(budget));
-    // Increments along each object's upper convex hull from (0, 0): (efficiency, Δcost, Δbenefit).
+    // The LP optimum takes hull increments in falling efficiency, the last one in part.
     let mut increments: Vec<(f64, f64, f64)> = Vec::new();
-    let mut hull: Vec<(f64, f64)> = Vec::new();
-    let mut points: Vec<(f64, f64)> = Vec::new();
-    let mut free_benefit = 0.0;
+    let (mut scratch, mut hull) = (Vec::new(), Vec::new());
     for object in 0..problem.len() {
-        points.clear();
-        points.push((0.0, 0.0));
-        points.extend(
-            problem
-                .ladder(object)
-                .iter()
-                .map(|l| (f64::from(l.cost), f64::from(l.benefit))),
-        );
-        points.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)));
-        hull.clear();
-        for &p in &points {
-            if hull.last().is_some_and(|h: &(f64, f64)| p.1 <= h.1) {
-                continue; // dominated: costs no less, benefits no more
-            }
-            if hull.last().is_some_and(|h| h.0 == p.0) {
-                hull.pop();
-            }
-            while hull.len() >= 2 {
-                let (a, b) = (hull[hull.len() - 2], hull[hull.len() - 1]);
-                // Drop b if it lies on or below the segment a → p.
-                let cross = (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0);
-                if cross >= 0.0 {
-                    hull.pop();
-                } else {
-                    break;
-                }
-            }
-            hull.push(p);
-        }
-        if hull[0].0 == 0.0 {
-            free_benefit += hull[0].1;
-        }
-        for w in hull.windows(2) {
-            let (dc, db) = (w[1].0 - w[0].0, w[1].1 - w[0].1);
-            increments.push((db / dc, dc, db));
+        let points = problem
+            .ladder(object)
+            .iter()
+            .enumerate()
+            .map(|(level, l)| (level as u32, f64::from(l.cost), f64::from(l.benefit)));
+        upper_hull(points, budget, &mut scratch, &mut hull);
+        let mut previous = (0.0, 0.0);
+        for p in &hull {
+            increments.push((p.efficiency, p.cost - previous.0, p.benefit - previous.1));
+            previous = (p.cost, p.benefit);
         }
     }
     increments.sort_by(|a, b| b.0.total_cmp(&a.0));
     let mut left = budget;
-    let mut bound = free_benefit;
+    let mut bound = 0.0;
     for (_, dc, db) in increments {
         if dc <= left {
             left -= dc;
@@ -288,25 +268,37 @@ mod tests {
 
     #[test]
     fn lp_bound_by_hand() {
-        // One object: hull (0,0) → (1,5) → (4,8). Budget 2.5: 5 + 1.5 · (3/3) = 6.5.
+        // One object: hull (0,0) → (1,5) → (4,8). A level costing more than the budget can
+        // never be drawn, so it is left out: budget 2.5 bounds at 5, budget 4 at 8.
         let p = problem(&[&[(4.0, 8.0), (1.0, 5.0)]]);
-        assert_relative_eq!(lp_upper_bound(&p, 2.5), 6.5);
+        assert_relative_eq!(lp_upper_bound(&p, 2.5), 5.0);
+        assert_relative_eq!(lp_upper_bound(&p, 4.0), 8.0);
         assert_relative_eq!(lp_upper_bound(&p, 100.0), 8.0);
         assert_relative_eq!(lp_upper_bound(&p, 0.0), 0.0);
+        // Fractions: A1 (eff 5), then A0's increment (3, 3) and B (2, 2), both eff 1:
+        // budget 4.5 → 5 + 3.5.
+        let p = problem(&[&[(4.0, 8.0), (1.0, 5.0)], &[(2.0, 2.0)]]);
+        assert_relative_eq!(lp_upper_bound(&p, 4.5), 8.5);
     }
 
     #[test]
     fn lp_bound_skips_points_under_the_hull() {
-        // (2, 3) lies under the segment (1,5) → (4,8)... and is dominated anyway.
-        let p = problem(&[&[(4.0, 8.0), (2.0, 3.0), (1.0, 5.0)]]);
-        assert_relative_eq!(lp_upper_bound(&p, 2.5), 6.5);
+        // (2, 5.5) lies under the segment (1, 5) → (3, 7): A's hull increments are 5 and
+        // then 1 per second, B's 0.9. Budget 3: A's (1, 5), then (2, 2) more → 7.
+        // Keeping (2, 5.5) would rank a 1.5-per-second step first and give 7.4.
+        let p = problem(&[&[(3.0, 7.0), (2.0, 5.5), (1.0, 5.0)], &[(1.0, 0.9)]]);
+        assert_relative_eq!(lp_upper_bound(&p, 3.0), 7.0);
     }
 
     #[test]
     fn hierarchy_optimum_by_hand() {
         let mut h = LodHierarchy::new();
-        let a = h.add_object(&[Level::new(4.0, 8.0), Level::new(1.0, 3.0)]).unwrap();
-        let b = h.add_object(&[Level::new(4.0, 8.0), Level::new(1.0, 3.0)]).unwrap();
+        let a = h
+            .add_object(&[Level::new(4.0, 8.0), Level::new(1.0, 3.0)])
+            .unwrap();
+        let b = h
+            .add_object(&[Level::new(4.0, 8.0), Level::new(1.0, 3.0)])
+            .unwrap();
         h.add_group(&[a, b], &[Level::new(1.0, 4.0)]).unwrap();
         assert_relative_eq!(hierarchy_optimum(&h, 0.5).unwrap(), 0.0);
         assert_relative_eq!(hierarchy_optimum(&h, 1.5).unwrap(), 4.0);

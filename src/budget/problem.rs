@@ -283,7 +283,10 @@ impl BudgetProblem {
         allocations
             .iter()
             .enumerate()
-            .filter_map(|(i, a)| a.level.map(|l| f64::from(self.ladder(i)[l as usize].benefit)))
+            .filter_map(|(i, a)| {
+                a.level
+                    .map(|l| f64::from(self.ladder(i)[l as usize].benefit))
+            })
             .sum()
     }
 }
@@ -313,6 +316,17 @@ impl Allocation {
         level: None,
         truncated: false,
     };
+
+    /// An object drawing `level`, given exactly its cost: how strategies without a notion of
+    /// allotment report what they selected.
+    pub const fn drawn(cost: f32, level: u32) -> Self {
+        Self {
+            given: cost,
+            used: cost,
+            level: Some(level),
+            truncated: false,
+        }
+    }
 
     /// Whether the object draws anything.
     pub fn is_drawn(&self) -> bool {
@@ -374,10 +388,12 @@ impl BudgetStats {
                 stats.truncated += 1;
             }
         }
-        stats.given = given as f32;
-        stats.used = used as f32;
-        stats.overrun = (used - f64::from(rendering_time)).max(0.0) as f32;
-        stats.wasted = (f64::from(rendering_time) - used_within_allotment).max(0.0) as f32;
+        // Totals of near-`f32::MAX` times saturate instead of overflowing to infinity.
+        let saturate = |x: f64| x.clamp(0.0, f64::from(f32::MAX)) as f32;
+        stats.given = saturate(given);
+        stats.used = saturate(used);
+        stats.overrun = saturate(used - f64::from(rendering_time));
+        stats.wasted = saturate(f64::from(rendering_time) - used_within_allotment);
         stats
     }
 }

@@ -190,7 +190,7 @@ impl RobinHood {
             };
             let given = remaining * share; // P-2
             remaining -= given; // P-3
-            let given = given as f32;
+            let given = given.min(f64::from(f32::MAX)) as f32;
             let chosen = fit(i, given);
             let used = if chosen.used.is_finite() {
                 chosen.used.max(0.0)

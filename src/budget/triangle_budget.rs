@@ -110,13 +110,7 @@ impl BudgetStrategy for TriangleBudget {
         allocations.extend((0..n).map(|object| {
             let ladder = problem.ladder(object);
             let level = (ladder.len() - 1) as u32 - self.detail[object];
-            let cost = ladder[level as usize].cost;
-            Allocation {
-                given: cost,
-                used: cost,
-                level: Some(level),
-                truncated: false,
-            }
+            Allocation::drawn(ladder[level as usize].cost, level)
         }));
         BudgetStats::from_allocations(budget as f32, allocations)
     }

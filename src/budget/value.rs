@@ -28,7 +28,13 @@ impl ValueInputs {
     /// distance raised to [`MIN_DEPTH`] (NaN depth counts as [`MIN_DEPTH`] too).
     pub fn sanitized(&self) -> Self {
         let non_negative = |x: f32| if x.is_nan() { 0.0 } else { x.max(0.0) };
-        let depth = |x: f32| if x.is_nan() { MIN_DEPTH } else { x.max(MIN_DEPTH) };
+        let depth = |x: f32| {
+            if x.is_nan() {
+                MIN_DEPTH
+            } else {
+                x.max(MIN_DEPTH)
+            }
+        };
         Self {
             area: non_negative(self.area),
             depth: depth(self.depth),
@@ -59,9 +65,7 @@ where
 
 /// The value functions of the Robin Hood paper (`a` area, `z` depth, `d` distance,
 /// `I` importance).
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, Reflect,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, Reflect)]
 pub enum ValueFunction {
     /// P-8, `a/√z · I`: spreads time evenly over near and far objects, leaving the
     /// smallest remainders; suits scenes where distant objects matter.

@@ -1,0 +1,122 @@
+//! The upper convex hull of a ladder's (cost, benefit) points from (0, 0): its
+//! LP-undominated representations. Along it the incremental `Value`
+//! (Δbenefit / Δcost) strictly falls, which is what makes the greedy knapsack
+//! approximation at least half optimal and the LP relaxation solvable greedily.
+
+use alloc::vec::Vec;
+
+/// One representation on the hull.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct HullPoint {
+    /// Ladder index of the representation.
+    pub level: u32,
+    pub cost: f64,
+    pub benefit: f64,
+    /// Δbenefit / Δcost from the previous hull point (from (0, 0) for the first);
+    /// +∞ for a free representation with a benefit.
+    pub efficiency: f64,
+}
+
+/// Fills `hull` with the upper convex hull of `(cost, benefit(level))` over the ladder's
+/// levels costing at most `max_cost`, starting from (0, 0) (the "not drawn" choice, not
+/// itself included). Dominated points (no cheaper for no more benefit) and points on or
+/// under the hull are left out.
+pub(crate) fn upper_hull(
+    costs: impl Iterator<Item = (u32, f64, f64)>,
+    max_cost: f64,
+    scratch: &mut Vec<(u32, f64, f64)>,
+    hull: &mut Vec<HullPoint>,
+) {
+    scratch.clear();
+    scratch.extend(costs.filter(|&(_, c, b)| c <= max_cost && b > 0.0));
+    scratch.sort_by(|a, b| a.1.total_cmp(&b.1).then(b.2.total_cmp(&a.2)));
+    hull.clear();
+    let origin = (0.0_f64, 0.0_f64);
+    for &(level, cost, benefit) in scratch.iter() {
+        let last = hull.last().map_or(origin, |h| (h.cost, h.benefit));
+        if benefit <= last.1 {
+            continue; // dominated
+        }
+        // Pop points on or under the segment from their predecessor to this point.
+        while let Some(b) = hull.last() {
+            let a = if hull.len() >= 2 {
+                let a = hull[hull.len() - 2];
+                (a.cost, a.benefit)
+            } else {
+                origin
+            };
+            let cross = (b.cost - a.0) * (benefit - a.1) - (b.benefit - a.1) * (cost - a.0);
+            if cross >= 0.0 {
+                hull.pop();
+            } else {
+                break;
+            }
+        }
+        hull.push(HullPoint {
+            level,
+            cost,
+            benefit,
+            efficiency: 0.0,
+        });
+    }
+    let mut previous = origin;
+    for p in hull.iter_mut() {
+        let (dc, db) = (p.cost - previous.0, p.benefit - previous.1);
+        p.efficiency = if dc > 0.0 { db / dc } else { f64::INFINITY };
+        previous = (p.cost, p.benefit);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hull_of(points: &[(f64, f64)], max_cost: f64) -> Vec<(u32, f64)> {
+        let mut hull = Vec::new();
+        upper_hull(
+            points
+                .iter()
+                .enumerate()
+                .map(|(i, &(c, b))| (i as u32, c, b)),
+            max_cost,
+            &mut Vec::new(),
+            &mut hull,
+        );
+        hull.iter().map(|p| (p.level, p.efficiency)).collect()
+    }
+
+    #[test]
+    fn keeps_only_the_concave_frontier() {
+        // (1,5) eff 5; (2,6) is under the segment (1,5)→(4,12)? slope 7/3 > 1 → yes, dropped.
+        let h = hull_of(&[(4.0, 12.0), (2.0, 6.0), (1.0, 5.0)], 10.0);
+        assert_eq!(h, vec![(2, 5.0), (0, 7.0 / 3.0)]);
+    }
+
+    #[test]
+    fn drops_dominated_and_unaffordable_points() {
+        let h = hull_of(&[(5.0, 4.0), (3.0, 4.0), (1.0, 2.0)], 4.0);
+        assert_eq!(h, vec![(2, 2.0), (1, 1.0)]);
+        let h = hull_of(&[(5.0, 4.0)], 4.0);
+        assert!(h.is_empty());
+    }
+
+    #[test]
+    fn free_points_are_infinitely_efficient() {
+        let h = hull_of(&[(2.0, 3.0), (0.0, 1.0)], 10.0);
+        assert_eq!(h, vec![(1, f64::INFINITY), (0, 1.0)]);
+    }
+
+    #[test]
+    fn efficiencies_fall_along_the_hull() {
+        let pts = [
+            (9.0, 10.0),
+            (6.0, 9.0),
+            (4.0, 8.5),
+            (3.0, 6.0),
+            (1.0, 3.0),
+            (0.5, 0.1),
+        ];
+        let h = hull_of(&pts, 100.0);
+        assert!(h.windows(2).all(|w| w[0].1 > w[1].1), "{h:?}");
+    }
+}
