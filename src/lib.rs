@@ -1,8 +1,6 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
-extern crate alloc;
-
 pub mod budget;
 
 use bevy::app::{PluginGroup, PluginGroupBuilder};

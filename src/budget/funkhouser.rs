@@ -16,8 +16,6 @@
 //! optimal (the LP optimum is at most the greedy plus one tuple). The published ranking
 //! stays available as [`ValueOrdering::Published`] for comparisons.
 
-use alloc::vec::Vec;
-
 use bevy::reflect::Reflect;
 use serde::{Deserialize, Serialize};
 

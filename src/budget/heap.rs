@@ -1,8 +1,7 @@
 //! Lazy-deletion priority queues keyed by `f32`, shared by the incremental strategies.
 
-use alloc::collections::BinaryHeap;
-use alloc::vec::Vec;
 use core::cmp::{Ordering, Reverse};
+use std::collections::BinaryHeap;
 
 #[derive(Clone, Copy, Debug)]
 struct Entry {

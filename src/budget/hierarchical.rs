@@ -19,9 +19,6 @@
 //! The scene starts represented by an imaginary item of no cost and no benefit at the
 //! (virtual) root; later frames start from the previous frame's representation.
 
-use alloc::vec;
-use alloc::vec::Vec;
-
 use super::problem::{
     Allocation, BudgetProblem, BudgetStats, BudgetStrategy, Level, PreviousSelection, sanitize_time,
 };
@@ -577,10 +574,10 @@ impl HierarchicalLod {
             };
         }
         let mut children_lowest = vec![(0.0_f64, 0.0_f64); n];
-        for node in 0..root {
+        for (node, &(cost, benefit)) in lowest.iter().enumerate().take(root) {
             let parent = Self::parent(h, node).unwrap_or(root);
-            children_lowest[parent].0 += lowest[node].0;
-            children_lowest[parent].1 += lowest[node].1;
+            children_lowest[parent].0 += cost;
+            children_lowest[parent].1 += benefit;
         }
         // "Everything else" when `node` is shown: its parent's everything-else plus its
         // siblings at their lowest. Parents have higher indices, so walk downwards.

@@ -3,8 +3,6 @@
 //! (Δbenefit / Δcost) strictly falls, which is what makes the greedy knapsack
 //! approximation at least half optimal and the LP relaxation solvable greedily.
 
-use alloc::vec::Vec;
-
 /// One representation on the hull.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct HullPoint {

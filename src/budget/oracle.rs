@@ -5,8 +5,6 @@
 //! The exact optimum is a dynamic programme over Pareto frontiers (cost, benefit) — exact
 //! for real-valued costs, with no discretisation — whose frontier size is capped.
 
-use alloc::vec::Vec;
-
 use super::hierarchical::{LodHierarchy, NodeId};
 use super::hull::upper_hull;
 use super::problem::{BudgetProblem, sanitize_time};
@@ -71,7 +69,7 @@ pub fn optimal_selection(
 ) -> Result<OptimalSelection, OracleError> {
     let budget = f64::from(sanitize_time(budget));
     let mut stages: Vec<Vec<Point>> = Vec::with_capacity(problem.len());
-    let mut frontier = alloc::vec![Point {
+    let mut frontier = vec![Point {
         cost: 0.0,
         benefit: 0.0,
         from: 0,
@@ -109,7 +107,7 @@ pub fn optimal_selection(
         .max_by(|a, b| a.1.benefit.total_cmp(&b.1.benefit))
         .map(|(i, _)| i)
         .unwrap_or(0);
-    let mut levels = alloc::vec![None; problem.len()];
+    let mut levels = vec![None; problem.len()];
     let (benefit, cost) = (frontier[best].benefit, frontier[best].cost);
     let mut index = best;
     let mut stage = &frontier;
@@ -202,7 +200,7 @@ fn combine<'a>(
     frontiers: impl Iterator<Item = &'a Vec<Point>>,
     budget: f64,
 ) -> Result<Vec<Point>, OracleError> {
-    let mut acc = alloc::vec![Point {
+    let mut acc = vec![Point {
         cost: 0.0,
         benefit: 0.0,
         from: 0,

@@ -2,8 +2,6 @@
 //! representations ([`BudgetProblem`]), what a strategy hands back per object
 //! ([`Allocation`]) and per frame ([`BudgetStats`]), and the [`BudgetStrategy`] trait.
 
-use alloc::vec::Vec;
-
 use bevy::reflect::Reflect;
 use serde::{Deserialize, Serialize};
 

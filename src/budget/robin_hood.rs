@@ -6,8 +6,6 @@
 //! is ever dropped: one whose cheapest representation does not fit its share is drawn
 //! time-critically (truncated).
 
-use alloc::vec::Vec;
-
 use super::problem::{Allocation, BudgetProblem, BudgetStats, BudgetStrategy, sanitize_time};
 
 /// What an object does with the time it is given.

@@ -13,8 +13,6 @@
 //! Misprint fixed: line 16 of the published pseudo-code doubles `contribution(maxId)`
 //! in the lowering loop; it must be `contribution(minId)`, the model being lowered.
 
-use alloc::vec::Vec;
-
 use super::heap::ItemQueues;
 use super::problem::{
     Allocation, BudgetProblem, BudgetStats, BudgetStrategy, PreviousSelection, sanitize_time,
