@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 pub mod budget;
+pub mod tree;
 
 use bevy::app::{PluginGroup, PluginGroupBuilder};
 use bevy::ecs::schedule::SystemSet;
@@ -68,10 +69,15 @@ impl Plugin for SherwoodCorePlugin {
 
 /// Every Sherwood plugin. Stages arrive one plugin each; leave one out with
 /// `SherwoodPlugins.build().disable::<ThePlugin>()`.
+///
+/// Needs Bevy's `AssetPlugin` (part of `DefaultPlugins`; add it next to `MinimalPlugins`
+/// in a headless app).
 pub struct SherwoodPlugins;
 
 impl PluginGroup for SherwoodPlugins {
     fn build(self) -> PluginGroupBuilder {
-        PluginGroupBuilder::start::<Self>().add(SherwoodCorePlugin)
+        PluginGroupBuilder::start::<Self>()
+            .add(SherwoodCorePlugin)
+            .add(tree::TreePlugin)
     }
 }

@@ -23,7 +23,7 @@ fn stages_run_in_order_every_frame() {
     ];
     let log: Log = Arc::default();
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, SherwoodPlugins));
+    app.add_plugins((MinimalPlugins, AssetPlugin::default(), SherwoodPlugins));
     // Registered in reverse so that only the set ordering can put them right.
     for stage in stages.iter().rev() {
         app.add_systems(PostUpdate, recorder(log.clone(), *stage).in_set(*stage));
@@ -43,15 +43,20 @@ fn stages_follow_transform_propagation() {
     struct Seen(Option<Vec3>);
 
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, TransformPlugin, SherwoodPlugins))
-        .init_resource::<Seen>()
-        .add_systems(
-            PostUpdate,
-            (|q: Query<&GlobalTransform, With<Probe>>, mut seen: ResMut<Seen>| {
-                seen.0 = q.iter().next().map(GlobalTransform::translation);
-            })
-            .in_set(SherwoodSystems::Value),
-        );
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin::default(),
+        TransformPlugin,
+        SherwoodPlugins,
+    ))
+    .init_resource::<Seen>()
+    .add_systems(
+        PostUpdate,
+        (|q: Query<&GlobalTransform, With<Probe>>, mut seen: ResMut<Seen>| {
+            seen.0 = q.iter().next().map(GlobalTransform::translation);
+        })
+        .in_set(SherwoodSystems::Value),
+    );
     app.world_mut()
         .spawn((Probe, Transform::from_xyz(1.0, 2.0, 3.0)));
     app.update();
@@ -66,6 +71,7 @@ fn plugin_group_can_leave_a_plugin_out() {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
+        AssetPlugin::default(),
         SherwoodPlugins.build().disable::<SherwoodCorePlugin>(),
     ));
     app.update();

@@ -60,8 +60,8 @@ pub struct FunkhouserSequin {
     /// How tuples are ranked. Default: [`ValueOrdering::Hull`].
     pub ordering: ValueOrdering,
     tuples: Vec<Tuple>,
+    increments: Vec<Increment>,
     selection: Vec<u32>,
-    scratch: Vec<(u32, f64, f64)>,
     hull: Vec<HullPoint>,
     used_single_best: bool,
 }
@@ -72,8 +72,8 @@ impl Default for FunkhouserSequin {
             half_optimality_fix: true,
             ordering: ValueOrdering::Hull,
             tuples: Vec::new(),
+            increments: Vec::new(),
             selection: Vec::new(),
-            scratch: Vec::new(),
             hull: Vec::new(),
             used_single_best: false,
         }
@@ -109,58 +109,21 @@ impl FunkhouserSequin {
         self.used_single_best
     }
 
-    fn collect_tuples(&mut self, problem: &BudgetProblem, budget: f64) {
+    /// The published greedy: every tuple by its own Value, replacing, stopping at the
+    /// first tuple that does not fit. Returns the benefit of the selection.
+    fn published_greedy(&mut self, problem: &BudgetProblem, budget: f64) -> f64 {
         self.tuples.clear();
         for object in 0..problem.len() {
             let ladder = problem.ladder(object);
-            match self.ordering {
-                ValueOrdering::Published => {
-                    self.tuples
-                        .extend(ladder.iter().enumerate().map(|(level, l)| Tuple {
-                            value: l.value(),
-                            object: object as u32,
-                            level: level as u32,
-                        }));
-                }
-                ValueOrdering::Hull => {
-                    let points = ladder
-                        .iter()
-                        .enumerate()
-                        .map(|(level, l)| (level as u32, f64::from(l.cost), f64::from(l.benefit)));
-                    upper_hull(points, budget, &mut self.scratch, &mut self.hull);
-                    self.tuples.extend(self.hull.iter().map(|p| Tuple {
-                        value: p.efficiency as f32,
-                        object: object as u32,
-                        level: p.level,
-                    }));
-                }
-            }
+            self.tuples
+                .extend(ladder.iter().enumerate().map(|(level, l)| Tuple {
+                    value: l.value(),
+                    object: object as u32,
+                    level: level as u32,
+                }));
         }
-    }
-}
-
-impl BudgetStrategy for FunkhouserSequin {
-    fn name(&self) -> &'static str {
-        match self.ordering {
-            ValueOrdering::Hull => "Funkhouser–Séquin greedy",
-            ValueOrdering::Published => "Funkhouser–Séquin greedy (published ranking)",
-        }
-    }
-
-    fn distribute(
-        &mut self,
-        problem: &BudgetProblem,
-        rendering_time: f32,
-        allocations: &mut Vec<Allocation>,
-    ) -> BudgetStats {
-        let budget = f64::from(sanitize_time(rendering_time));
-        let n = problem.len();
-        self.collect_tuples(problem, budget);
         // Radix sort: descending value, stable, O(tuples).
         radsort::sort_by_key(&mut self.tuples, |t| -t.value);
-
-        self.selection.clear();
-        self.selection.resize(n, NOT_SELECTED);
         let mut cost = 0.0_f64;
         let mut benefit = 0.0_f64;
         for t in &self.tuples {
@@ -184,6 +147,132 @@ impl BudgetStrategy for FunkhouserSequin {
             benefit += f64::from(candidate.benefit) - current_benefit;
             self.selection[t.object as usize] = t.level;
         }
+        benefit
+    }
+
+    /// The greedy over hull increments. Within an object they come in falling Value, so
+    /// the greedy's answer is the longest prefix, in (Value ↓, object ↑) order, whose costs
+    /// fit; a weighted quickselect finds it in expected O(n) without sorting.
+    fn hull_greedy(&mut self, problem: &BudgetProblem, budget: f64) -> f64 {
+        self.increments.clear();
+        for object in 0..problem.len() {
+            upper_hull(problem.cheapest_first(object), budget, &mut self.hull);
+            let mut previous = 0.0;
+            for p in &self.hull {
+                self.increments.push(Increment {
+                    value: p.efficiency as f32,
+                    cost: (p.cost - previous) as f32,
+                    object: object as u32,
+                    level: p.level,
+                });
+                previous = p.cost;
+            }
+        }
+        let selection = &mut self.selection;
+        take_fitting_prefix(&mut self.increments, budget, |inc| {
+            let current = &mut selection[inc.object as usize];
+            let ladder = problem.ladder(inc.object as usize);
+            // The object's deepest increment taken is its level (costs rise along a hull).
+            if *current == NOT_SELECTED
+                || ladder[inc.level as usize].cost > ladder[*current as usize].cost
+            {
+                *current = inc.level;
+            }
+        });
+        self.selection
+            .iter()
+            .enumerate()
+            .filter(|&(_, &l)| l != NOT_SELECTED)
+            .map(|(object, &l)| f64::from(problem.ladder(object)[l as usize].benefit))
+            .sum()
+    }
+}
+
+/// One step along an object's hull.
+#[derive(Clone, Copy, Debug)]
+struct Increment {
+    /// Δbenefit / Δcost.
+    value: f32,
+    /// Δcost.
+    cost: f32,
+    object: u32,
+    level: u32,
+}
+
+impl Increment {
+    /// Whether `self` comes before `other` in the greedy's order.
+    fn before(&self, other: &Self) -> bool {
+        match self.value.total_cmp(&other.value) {
+            core::cmp::Ordering::Greater => true,
+            core::cmp::Ordering::Less => false,
+            core::cmp::Ordering::Equal => self.object < other.object,
+        }
+    }
+}
+
+/// Calls `take` for every increment of the longest prefix (in greedy order) whose summed
+/// cost fits `budget`: the greedy with stop semantics, by weighted quickselect.
+fn take_fitting_prefix(items: &mut [Increment], mut budget: f64, mut take: impl FnMut(&Increment)) {
+    let mut slice = items;
+    while !slice.is_empty() {
+        // Median of three as pivot, moved to the end.
+        let (a, b, c) = (0, slice.len() / 2, slice.len() - 1);
+        let median = if slice[a].before(&slice[b]) == slice[b].before(&slice[c]) {
+            b
+        } else if slice[b].before(&slice[a]) == slice[a].before(&slice[c]) {
+            a
+        } else {
+            c
+        };
+        slice.swap(median, c);
+        let pivot = slice[c];
+        let mut front = 0;
+        let mut front_cost = 0.0_f64;
+        for i in 0..c {
+            if slice[i].before(&pivot) {
+                front_cost += f64::from(slice[i].cost);
+                slice.swap(i, front);
+                front += 1;
+            }
+        }
+        slice.swap(front, c);
+        if front_cost > budget {
+            slice = &mut slice[..front];
+            continue;
+        }
+        slice[..front].iter().for_each(&mut take);
+        budget -= front_cost;
+        if f64::from(pivot.cost) > budget {
+            return;
+        }
+        take(&pivot);
+        budget -= f64::from(pivot.cost);
+        slice = &mut slice[front + 1..];
+    }
+}
+
+impl BudgetStrategy for FunkhouserSequin {
+    fn name(&self) -> &'static str {
+        match self.ordering {
+            ValueOrdering::Hull => "Funkhouser–Séquin greedy",
+            ValueOrdering::Published => "Funkhouser–Séquin greedy (published ranking)",
+        }
+    }
+
+    fn distribute(
+        &mut self,
+        problem: &BudgetProblem,
+        rendering_time: f32,
+        allocations: &mut Vec<Allocation>,
+    ) -> BudgetStats {
+        let budget = f64::from(sanitize_time(rendering_time));
+        let n = problem.len();
+        self.selection.clear();
+        self.selection.resize(n, NOT_SELECTED);
+        let benefit = match self.ordering {
+            ValueOrdering::Hull => self.hull_greedy(problem, budget),
+            ValueOrdering::Published => self.published_greedy(problem, budget),
+        };
 
         self.used_single_best = false;
         if self.half_optimality_fix
@@ -240,7 +329,6 @@ pub struct FunkhouserIncremental {
     hull_start: Vec<u32>,
     /// Rank per object: 0 = not drawn, r ≥ 1 = hull point r − 1.
     rank: Vec<u32>,
-    scratch: Vec<(u32, f64, f64)>,
     hull: Vec<HullPoint>,
     queues: ItemQueues,
     iterations: u32,
@@ -299,12 +387,13 @@ impl FunkhouserIncremental {
         for object in 0..problem.len() {
             let ladder = problem.ladder(object);
             let previous = problem.previous(object);
-            let points = ladder.iter().enumerate().map(|(level, l)| {
-                let kept = previous == PreviousSelection::Level(level as u32);
-                let benefit = f64::from(l.benefit) * if kept { weight } else { 1.0 };
-                (level as u32, f64::from(l.cost), benefit)
-            });
-            upper_hull(points, budget, &mut self.scratch, &mut self.hull);
+            let points = problem
+                .cheapest_first(object)
+                .map(|(level, cost, benefit)| {
+                    let kept = previous == PreviousSelection::Level(level);
+                    (level, cost, benefit * if kept { weight } else { 1.0 })
+                });
+            upper_hull(points, budget, &mut self.hull);
             // Start at the richest hull point no costlier than last frame's level.
             let rank = match previous {
                 PreviousSelection::Dropped => 0,
@@ -339,8 +428,18 @@ impl BudgetStrategy for FunkhouserIncremental {
         let mut cost = 0.0;
         for object in 0..n {
             cost += self.rank_cost(object, self.rank[object]);
-            self.requeue(object);
         }
+        // Heapify every object's entries at once: O(n) instead of n pushes.
+        let (hulls, starts, ranks) = (&self.hulls, &self.hull_start, &self.rank);
+        let hull = |object: usize| &hulls[starts[object] as usize..starts[object + 1] as usize];
+        self.queues.extend_max((0..n).filter_map(|object| {
+            let next = hull(object).get(ranks[object] as usize)?;
+            Some((object, next.efficiency as f32))
+        }));
+        self.queues.extend_min((0..n).filter_map(|object| {
+            let current = (ranks[object] as usize).checked_sub(1)?;
+            Some((object, hull(object)[current].efficiency as f32))
+        }));
 
         // Each iteration raises one step; the bound only guards against float ties cycling.
         let limit = 4 * self.hulls.len() + 16;

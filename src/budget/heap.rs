@@ -23,7 +23,7 @@ impl PartialOrd for Entry {
 }
 impl Ord for Entry {
     fn cmp(&self, other: &Self) -> Ordering {
-        // Ties go to the lower item index, so results do not depend on heap internals.
+        // Ties are broken by item index, so results do not depend on heap internals.
         self.key
             .total_cmp(&other.key)
             .then_with(|| other.item.cmp(&self.item))
@@ -67,6 +67,28 @@ impl ItemQueues {
             key,
             item: item as u32,
             version,
+        }));
+    }
+
+    /// Queues many `(item, key)` max-entries at once (heapified in O(n)).
+    pub(crate) fn extend_max(&mut self, entries: impl Iterator<Item = (usize, f32)>) {
+        let versions = &self.versions;
+        self.max.extend(entries.map(|(item, key)| Entry {
+            key,
+            item: item as u32,
+            version: versions[item],
+        }));
+    }
+
+    /// Queues many `(item, key)` min-entries at once (heapified in O(n)).
+    pub(crate) fn extend_min(&mut self, entries: impl Iterator<Item = (usize, f32)>) {
+        let versions = &self.versions;
+        self.min.extend(entries.map(|(item, key)| {
+            Reverse(Entry {
+                key,
+                item: item as u32,
+                version: versions[item],
+            })
         }));
     }
 

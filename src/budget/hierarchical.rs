@@ -244,6 +244,8 @@ pub struct HierarchicalLod {
     cost: f64,
     benefit: f64,
     iterations: u32,
+    /// The virtual root's children (the hierarchy's parentless nodes), cached per solve.
+    top: Vec<NodeId>,
     flat: LodHierarchy,
 }
 
@@ -257,6 +259,7 @@ impl Default for HierarchicalLod {
             cost: 0.0,
             benefit: 0.0,
             iterations: 0,
+            top: Vec::new(),
             flat: LodHierarchy::new(),
         }
     }
@@ -328,11 +331,11 @@ impl HierarchicalLod {
 
     // --- structure helpers (the virtual root is node `hierarchy.len()`) ---
 
-    fn children<'a>(&self, h: &'a LodHierarchy, node: usize) -> ChildIter<'a> {
+    fn children<'a>(&'a self, h: &'a LodHierarchy, node: usize) -> ChildIter<'a> {
         if node == h.len() {
-            ChildIter::Top(h, 0)
+            ChildIter(self.top.iter())
         } else {
-            ChildIter::Slice(h.children(node as NodeId).iter())
+            ChildIter(h.children(node as NodeId).iter())
         }
     }
 
@@ -359,6 +362,8 @@ impl HierarchicalLod {
 
     /// Recomputes `open_value`, every aggregate, and the totals from the current state.
     fn prepare(&mut self, h: &LodHierarchy) {
+        self.top.clear();
+        self.top.extend(h.top_level());
         let n = h.len() + 1;
         self.open_value.clear();
         self.open_value.resize(n, f32::NEG_INFINITY);
@@ -652,27 +657,12 @@ impl HierarchicalLod {
     }
 }
 
-enum ChildIter<'a> {
-    Slice(core::slice::Iter<'a, NodeId>),
-    Top(&'a LodHierarchy, usize),
-}
+struct ChildIter<'a>(core::slice::Iter<'a, NodeId>);
 
 impl Iterator for ChildIter<'_> {
     type Item = usize;
     fn next(&mut self) -> Option<usize> {
-        match self {
-            Self::Slice(it) => it.next().map(|&c| c as usize),
-            Self::Top(h, i) => {
-                while *i < h.len() {
-                    let node = *i;
-                    *i += 1;
-                    if h.parent[node] == NONE {
-                        return Some(node);
-                    }
-                }
-                None
-            }
-        }
+        self.0.next().map(|&c| c as usize)
     }
 }
 

@@ -15,22 +15,28 @@ pub(crate) struct HullPoint {
     pub efficiency: f64,
 }
 
-/// Fills `hull` with the upper convex hull of `(cost, benefit(level))` over the ladder's
-/// levels costing at most `max_cost`, starting from (0, 0) (the "not drawn" choice, not
-/// itself included). Dominated points (no cheaper for no more benefit) and points on or
-/// under the hull are left out.
+/// Fills `hull` with the upper convex hull of the `(level, cost, benefit)` points costing
+/// at most `max_cost`, starting from (0, 0) (the "not drawn" choice, not itself
+/// included). Dominated points (no cheaper for no more benefit) and points on or under
+/// the hull are left out.
+///
+/// Points must come in ascending cost — a ladder read cheapest first — so no sort is
+/// needed; among equal costs the one with the most benefit wins.
 pub(crate) fn upper_hull(
-    costs: impl Iterator<Item = (u32, f64, f64)>,
+    points: impl Iterator<Item = (u32, f64, f64)>,
     max_cost: f64,
-    scratch: &mut Vec<(u32, f64, f64)>,
     hull: &mut Vec<HullPoint>,
 ) {
-    scratch.clear();
-    scratch.extend(costs.filter(|&(_, c, b)| c <= max_cost && b > 0.0));
-    scratch.sort_by(|a, b| a.1.total_cmp(&b.1).then(b.2.total_cmp(&a.2)));
     hull.clear();
     let origin = (0.0_f64, 0.0_f64);
-    for &(level, cost, benefit) in scratch.iter() {
+    for (level, cost, benefit) in points {
+        if cost > max_cost || benefit <= 0.0 {
+            continue;
+        }
+        debug_assert!(
+            hull.last().is_none_or(|h| h.cost <= cost),
+            "points must ascend in cost"
+        );
         let last = hull.last().map_or(origin, |h| (h.cost, h.benefit));
         if benefit <= last.1 {
             continue; // dominated
@@ -70,22 +76,21 @@ mod tests {
     use super::*;
 
     fn hull_of(points: &[(f64, f64)], max_cost: f64) -> Vec<(u32, f64)> {
+        // The hull wants ascending cost, as a ladder read cheapest first gives it.
+        let mut sorted: Vec<(u32, f64, f64)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, &(c, b))| (i as u32, c, b))
+            .collect();
+        sorted.sort_by(|a, b| a.1.total_cmp(&b.1));
         let mut hull = Vec::new();
-        upper_hull(
-            points
-                .iter()
-                .enumerate()
-                .map(|(i, &(c, b))| (i as u32, c, b)),
-            max_cost,
-            &mut Vec::new(),
-            &mut hull,
-        );
+        upper_hull(sorted.into_iter(), max_cost, &mut hull);
         hull.iter().map(|p| (p.level, p.efficiency)).collect()
     }
 
     #[test]
     fn keeps_only_the_concave_frontier() {
-        // (1,5) eff 5; (2,6) is under the segment (1,5)→(4,12)? slope 7/3 > 1 → yes, dropped.
+        // (1, 5) at 5 per second; (2, 6) lies under the segment (1, 5) → (4, 12), dropped.
         let h = hull_of(&[(4.0, 12.0), (2.0, 6.0), (1.0, 5.0)], 10.0);
         assert_eq!(h, vec![(2, 5.0), (0, 7.0 / 3.0)]);
     }

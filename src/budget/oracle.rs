@@ -130,14 +130,9 @@ pub fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
     let budget = f64::from(sanitize_time(budget));
     // The LP optimum takes hull increments in falling efficiency, the last one in part.
     let mut increments: Vec<(f64, f64, f64)> = Vec::new();
-    let (mut scratch, mut hull) = (Vec::new(), Vec::new());
+    let mut hull = Vec::new();
     for object in 0..problem.len() {
-        let points = problem
-            .ladder(object)
-            .iter()
-            .enumerate()
-            .map(|(level, l)| (level as u32, f64::from(l.cost), f64::from(l.benefit)));
-        upper_hull(points, budget, &mut scratch, &mut hull);
+        upper_hull(problem.cheapest_first(object), budget, &mut hull);
         let mut previous = (0.0, 0.0);
         for p in &hull {
             increments.push((p.efficiency, p.cost - previous.0, p.benefit - previous.1));

@@ -274,6 +274,19 @@ impl BudgetProblem {
         &self.levels[start..end]
     }
 
+    /// Object `object`'s levels as `(ladder index, cost, benefit)`, cheapest first
+    /// (ascending cost).
+    pub(crate) fn cheapest_first(
+        &self,
+        object: usize,
+    ) -> impl Iterator<Item = (u32, f64, f64)> + '_ {
+        self.ladder(object)
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(level, l)| (level as u32, f64::from(l.cost), f64::from(l.benefit)))
+    }
+
     /// The total benefit of a selection (one ladder index or `None` per object).
     ///
     /// A truncated allocation counts the benefit of the level it names.

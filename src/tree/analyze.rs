@@ -1,0 +1,1093 @@
+//! From a trunk mesh and a leaves mesh to a [`TreeModel`] (thesis chapter 2, §4.2).
+//!
+//! The thesis' algorithm finds the root rings below the ground, then recursively the
+//! child rings among the unvisited neighbours of each ring; rings without children are
+//! terminal, and each leaf joins the group of its nearest terminal ring. Meshes made by
+//! real tools need more, so the analysis also:
+//! - welds vertices duplicated along UV seams (by position, with a tolerance relative
+//!   to the model's size);
+//! - accepts a different number of vertices per ring, caps (flat, or around a centre
+//!   vertex) and pointed tips (a one-vertex ring of diameter 0);
+//! - attaches a branch that is a separate piece of mesh, starting near or inside its
+//!   parent, by its open end nearest to the rings found so far;
+//! - treats each connected patch of leaf triangles (a quad, a small fan) as one leaf.
+//!
+//! Input that cannot be a tree is refused with a [`TreeAnalysisError`] naming what is
+//! wrong and where.
+
+use std::collections::HashMap;
+
+use bevy::math::{IVec3, Vec3};
+
+use super::model::{
+    BoundingSphere, Bounds, Leaf, LeafGroup, LinearRgb, NO_RING, Ring, Segments, TreeModel,
+};
+
+/// One part of a tree (trunk or leaves) as plain arrays.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MeshData<'a> {
+    /// Vertex positions.
+    pub positions: &'a [Vec3],
+    /// Vertex normals, parallel to `positions`; computed from the faces when `None`.
+    pub normals: Option<&'a [Vec3]>,
+    /// Triangle list: three vertex indices per triangle.
+    pub indices: &'a [u32],
+    /// The part's mean colour (bark or leaf), if known.
+    pub color: Option<LinearRgb>,
+}
+
+/// Which part of the tree an error is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TreePart {
+    /// The trunk and branches mesh.
+    Trunk,
+    /// The leaves mesh.
+    Leaves,
+}
+
+impl core::fmt::Display for TreePart {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::Trunk => "trunk",
+            Self::Leaves => "leaves",
+        })
+    }
+}
+
+/// Why a pair of meshes cannot be analysed into a tree.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TreeAnalysisError {
+    /// The trunk has no triangles.
+    #[error("the {part} mesh has no triangles")]
+    NoTriangles {
+        /// The part.
+        part: TreePart,
+    },
+    /// The index count is not a multiple of three.
+    #[error("the {part} mesh has {len} indices, not a multiple of 3: it must be a triangle list")]
+    NotTriangles {
+        /// The part.
+        part: TreePart,
+        /// The index count.
+        len: usize,
+    },
+    /// An index points past the vertex arrays.
+    #[error(
+        "{part} triangle {triangle} uses vertex {index}, but there are only {vertices} vertices"
+    )]
+    IndexOutOfRange {
+        /// The part.
+        part: TreePart,
+        /// The triangle.
+        triangle: usize,
+        /// The offending index.
+        index: u32,
+        /// The vertex count.
+        vertices: usize,
+    },
+    /// A position is NaN or infinite.
+    #[error("{part} vertex {vertex} has a non-finite position {position}")]
+    NonFinitePosition {
+        /// The part.
+        part: TreePart,
+        /// The vertex.
+        vertex: usize,
+        /// Its position.
+        position: Vec3,
+    },
+    /// The normals array does not match the positions.
+    #[error("the {part} mesh has {normals} normals for {positions} positions")]
+    NormalCountMismatch {
+        /// The part.
+        part: TreePart,
+        /// Normals given.
+        normals: usize,
+        /// Positions given.
+        positions: usize,
+    },
+    /// No trunk vertex is at or below the ground, so no hierarchy has a root.
+    #[error(
+        "no root ring: no trunk vertex lies at or below y = {ground} (the lowest is at y = {lowest}); the trunk must reach into the ground"
+    )]
+    NoRootRing {
+        /// The ground level used.
+        ground: f32,
+        /// The lowest trunk vertex's height.
+        lowest: f32,
+    },
+    /// A loop of vertices that should form a ring is open.
+    #[error(
+        "a ring of {vertices} vertices near {position} cannot be closed: vertex {vertex} has only {neighbours} neighbour(s) in it"
+    )]
+    OpenRing {
+        /// Centre of the offending vertices.
+        position: Vec3,
+        /// How many vertices it has.
+        vertices: usize,
+        /// A vertex with too few neighbours.
+        vertex: u32,
+        /// Its neighbours within the ring.
+        neighbours: usize,
+    },
+    /// A separate piece of trunk has no open end to attach it to the rest by.
+    #[error(
+        "a piece of trunk near {position} ({vertices} vertices) is not connected to a root ring and has no open end to attach it by"
+    )]
+    DetachedTrunkPiece {
+        /// A vertex of the piece.
+        position: Vec3,
+        /// Its vertex count.
+        vertices: usize,
+    },
+    /// A root ring's cap has triangles but the root has no segment to give them to.
+    #[error("the hierarchy rooted near {position} is a single ring with no segment")]
+    NoSegment {
+        /// The root ring's centre.
+        position: Vec3,
+    },
+    /// A leaf shares a vertex position with the trunk; leaves must stand apart.
+    #[error(
+        "leaf vertex {vertex} at {position} touches the trunk; leaves must not share vertices with it"
+    )]
+    LeafTouchesTrunk {
+        /// The leaf vertex (input index).
+        vertex: usize,
+        /// Its position.
+        position: Vec3,
+    },
+}
+
+/// Something odd but harmless that the analysis worked around.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AnalysisWarning {
+    /// Triangles that collapsed to a line or point after welding were dropped.
+    DegenerateTriangles {
+        /// The part.
+        part: TreePart,
+        /// How many.
+        count: usize,
+    },
+    /// A branch was attached to a ring far from its open end.
+    BranchAttachedFar {
+        /// The branch's first ring.
+        ring: u32,
+        /// Distance between its centre and its parent's.
+        distance: f32,
+    },
+    /// Leaves of zero area: their point has an arbitrary normal.
+    ZeroAreaLeaves {
+        /// How many.
+        count: usize,
+    },
+}
+
+/// Settings of [`analyze`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct AnalysisOptions {
+    /// Vertices closer than this fraction of the model's bounding-box diagonal are the
+    /// same vertex. Default: `1e-5`.
+    pub weld_tolerance: f32,
+    /// Height of the ground: vertices at or below it form root rings. Default: `0.0`.
+    pub ground: f32,
+    /// Bark colour when the trunk mesh carries none. Default: a dark brown.
+    pub default_bark_color: LinearRgb,
+    /// Leaf colour when the leaves mesh carries none. Default: a mid green.
+    pub default_leaf_color: LinearRgb,
+}
+
+impl Default for AnalysisOptions {
+    fn default() -> Self {
+        Self {
+            weld_tolerance: 1e-5,
+            ground: 0.0,
+            default_bark_color: [0.18, 0.11, 0.06],
+            default_leaf_color: [0.12, 0.32, 0.08],
+        }
+    }
+}
+
+/// A model and what the analysis had to work around.
+#[derive(Clone, Debug)]
+pub struct TreeAnalysis {
+    /// The analysed tree.
+    pub model: TreeModel,
+    /// Harmless oddities, for logs.
+    pub warnings: Vec<AnalysisWarning>,
+}
+
+/// Analyses a trunk mesh and a leaves mesh into a [`TreeModel`].
+pub fn analyze(
+    trunk: &MeshData,
+    leaves: &MeshData,
+    options: &AnalysisOptions,
+) -> Result<TreeAnalysis, TreeAnalysisError> {
+    validate(trunk, TreePart::Trunk)?;
+    validate(leaves, TreePart::Leaves)?;
+    if trunk.indices.is_empty() {
+        return Err(TreeAnalysisError::NoTriangles {
+            part: TreePart::Trunk,
+        });
+    }
+    let all = Bounds::from_points(trunk.positions.iter().chain(leaves.positions).copied());
+    let tolerance = (options.weld_tolerance * (all.max - all.min).length()).max(f32::EPSILON);
+    let mut warnings = Vec::new();
+
+    let mut welder = Welder::new(tolerance);
+    let trunk_mesh = welder.weld(trunk, TreePart::Trunk, &mut warnings);
+    let trunk_vertex_count = trunk_mesh.positions.len();
+    let hierarchy = Hierarchy::build(&trunk_mesh, options.ground, &mut warnings)?;
+
+    // Leaves weld in the same space: a leaf vertex landing on a trunk vertex touches it.
+    let leaf_start = trunk_vertex_count as u32;
+    let leaf_mesh = welder.weld(leaves, TreePart::Leaves, &mut warnings);
+    if let Some((input, _)) = leaf_mesh
+        .source
+        .iter()
+        .enumerate()
+        .find(|&(_, &w)| w < leaf_start)
+    {
+        return Err(TreeAnalysisError::LeafTouchesTrunk {
+            vertex: input,
+            position: leaves.positions[input],
+        });
+    }
+    let mut model = hierarchy.into_model(trunk_mesh, trunk, options)?;
+    attach_leaves(
+        &mut model,
+        leaf_mesh,
+        leaf_start,
+        leaves,
+        options,
+        &mut warnings,
+    );
+    Ok(TreeAnalysis { model, warnings })
+}
+
+fn validate(mesh: &MeshData, part: TreePart) -> Result<(), TreeAnalysisError> {
+    if !mesh.indices.len().is_multiple_of(3) {
+        return Err(TreeAnalysisError::NotTriangles {
+            part,
+            len: mesh.indices.len(),
+        });
+    }
+    if let Some(normals) = mesh.normals
+        && normals.len() != mesh.positions.len()
+    {
+        return Err(TreeAnalysisError::NormalCountMismatch {
+            part,
+            normals: normals.len(),
+            positions: mesh.positions.len(),
+        });
+    }
+    if let Some((vertex, &position)) = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !p.is_finite())
+    {
+        return Err(TreeAnalysisError::NonFinitePosition {
+            part,
+            vertex,
+            position,
+        });
+    }
+    if let Some((i, &index)) = mesh
+        .indices
+        .iter()
+        .enumerate()
+        .find(|&(_, &i)| i as usize >= mesh.positions.len())
+    {
+        return Err(TreeAnalysisError::IndexOutOfRange {
+            part,
+            triangle: i / 3,
+            index,
+            vertices: mesh.positions.len(),
+        });
+    }
+    Ok(())
+}
+
+/// A welded mesh: vertex indices are global across the welder's parts.
+struct WeldedMesh {
+    /// Positions of the vertices this part introduced (global index `first + i`).
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    first: u32,
+    /// Global welded index of every input vertex.
+    source: Vec<u32>,
+    /// Triangles in global welded indices, degenerate ones dropped.
+    triangles: Vec<[u32; 3]>,
+}
+
+/// Merges vertices closer than a tolerance, across calls.
+struct Welder {
+    tolerance: f32,
+    cells: HashMap<IVec3, Vec<u32>>,
+    positions: Vec<Vec3>,
+}
+
+impl Welder {
+    fn new(tolerance: f32) -> Self {
+        Self {
+            tolerance,
+            cells: HashMap::new(),
+            positions: Vec::new(),
+        }
+    }
+
+    fn cell(&self, p: Vec3) -> IVec3 {
+        (p / self.tolerance).floor().as_ivec3()
+    }
+
+    fn find_or_insert(&mut self, p: Vec3) -> u32 {
+        let cell = self.cell(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(list) = self.cells.get(&(cell + IVec3::new(dx, dy, dz))) {
+                        for &v in list {
+                            if self.positions[v as usize].distance(p) <= self.tolerance {
+                                return v;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let v = self.positions.len() as u32;
+        self.positions.push(p);
+        self.cells.entry(cell).or_default().push(v);
+        v
+    }
+
+    fn weld(
+        &mut self,
+        mesh: &MeshData,
+        part: TreePart,
+        warnings: &mut Vec<AnalysisWarning>,
+    ) -> WeldedMesh {
+        let first = self.positions.len() as u32;
+        let source: Vec<u32> = mesh
+            .positions
+            .iter()
+            .map(|&p| self.find_or_insert(p))
+            .collect();
+        let count = self.positions.len() - first as usize;
+        let positions = self.positions[first as usize..].to_vec();
+        let mut normal_sum = vec![Vec3::ZERO; count];
+        let mut triangles = Vec::with_capacity(mesh.indices.len() / 3);
+        let mut degenerate = 0;
+        for tri in mesh.indices.chunks_exact(3) {
+            let t = [
+                source[tri[0] as usize],
+                source[tri[1] as usize],
+                source[tri[2] as usize],
+            ];
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                degenerate += 1;
+                continue;
+            }
+            triangles.push(t);
+        }
+        if degenerate > 0 {
+            warnings.push(AnalysisWarning::DegenerateTriangles {
+                part,
+                count: degenerate,
+            });
+        }
+        match mesh.normals {
+            Some(normals) => {
+                for (input, &w) in source.iter().enumerate() {
+                    if w >= first {
+                        normal_sum[(w - first) as usize] += normals[input];
+                    }
+                }
+            }
+            None => {
+                for t in &triangles {
+                    let p = t.map(|v| self.positions[v as usize]);
+                    let n = (p[1] - p[0]).cross(p[2] - p[0]);
+                    for v in t {
+                        if *v >= first {
+                            normal_sum[(*v - first) as usize] += n;
+                        }
+                    }
+                }
+            }
+        }
+        let normals = normal_sum
+            .into_iter()
+            .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
+            .collect();
+        WeldedMesh {
+            positions,
+            normals,
+            first,
+            source,
+            triangles,
+        }
+    }
+}
+
+/// Vertex adjacency in compressed rows.
+struct Adjacency {
+    offsets: Vec<u32>,
+    neighbours: Vec<u32>,
+}
+
+impl Adjacency {
+    fn new(vertices: usize, triangles: &[[u32; 3]], first: u32) -> Self {
+        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(triangles.len() * 6);
+        for t in triangles {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                edges.push((a - first, b - first));
+                edges.push((b - first, a - first));
+            }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        let mut offsets = vec![0_u32; vertices + 1];
+        for &(a, _) in &edges {
+            offsets[a as usize + 1] += 1;
+        }
+        for i in 0..vertices {
+            offsets[i + 1] += offsets[i];
+        }
+        Self {
+            offsets,
+            neighbours: edges.into_iter().map(|(_, b)| b).collect(),
+        }
+    }
+
+    fn of(&self, v: u32) -> &[u32] {
+        &self.neighbours[self.offsets[v as usize] as usize..self.offsets[v as usize + 1] as usize]
+    }
+}
+
+/// The ring hierarchy under construction (local trunk vertex indices).
+struct Hierarchy {
+    rings: Vec<RingBuild>,
+    vertex_ring: Vec<u32>,
+    triangles: Vec<[u32; 3]>,
+}
+
+struct RingBuild {
+    loop_vertices: Vec<u32>,
+    extra_vertices: Vec<u32>,
+    center: Vec3,
+    diameter: f32,
+    parent: u32,
+    level: u32,
+}
+
+impl Hierarchy {
+    fn build(
+        mesh: &WeldedMesh,
+        ground: f32,
+        warnings: &mut Vec<AnalysisWarning>,
+    ) -> Result<Self, TreeAnalysisError> {
+        let n = mesh.positions.len();
+        let triangles: Vec<[u32; 3]> = mesh
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| v - mesh.first))
+            .collect();
+        let adjacency = Adjacency::new(n, &triangles, 0);
+        let mut h = Self {
+            rings: Vec::new(),
+            vertex_ring: vec![NO_RING; n],
+            triangles,
+        };
+        let positions = &mesh.positions;
+
+        // Root rings: components of the vertices at or below the ground.
+        let below: Vec<bool> = positions.iter().map(|p| p.y <= ground).collect();
+        if !below.iter().any(|&b| b) {
+            let lowest = positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+            return Err(TreeAnalysisError::NoRootRing { ground, lowest });
+        }
+        let used: Vec<bool> = {
+            let mut u = vec![false; n];
+            for t in &h.triangles {
+                for &v in t {
+                    u[v as usize] = true;
+                }
+            }
+            u
+        };
+        let roots = components(
+            (0..n as u32).filter(|&v| below[v as usize] && used[v as usize]),
+            &adjacency,
+            |v| below[v as usize],
+        );
+        let mut queue = Vec::new();
+        for root in roots {
+            let ring = h.add_ring(root, NO_RING, positions, &adjacency)?;
+            queue.push(ring);
+        }
+        h.grow(&mut queue, positions, &adjacency)?;
+
+        // Separate pieces (branches modelled apart): attach each by its open end nearest to
+        // the rings found so far, nearest piece first, so branches of branches follow.
+        let boundary = boundary_loops(&h.triangles, n);
+        loop {
+            let mut best: Option<(f32, Vec<u32>, u32)> = None;
+            for lp in &boundary {
+                if lp.iter().any(|&v| h.vertex_ring[v as usize] != NO_RING) {
+                    continue;
+                }
+                let center = mean(lp.iter().map(|&v| positions[v as usize]));
+                let (parent, distance) = h.nearest_ring(center);
+                if best.as_ref().is_none_or(|b| distance < b.0) {
+                    best = Some((distance, lp.clone(), parent));
+                }
+            }
+            let Some((distance, start, parent)) = best else {
+                break;
+            };
+            let ring = h.add_ring(start, parent, positions, &adjacency)?;
+            // A branch may start anywhere along a segment next to its parent ring.
+            let parent_ring = &h.rings[parent as usize];
+            let segment = h
+                .rings
+                .iter()
+                .filter(|r| r.parent == parent)
+                .map(|r| r.center.distance(parent_ring.center))
+                .chain((parent_ring.parent != NO_RING).then(|| {
+                    h.rings[parent_ring.parent as usize]
+                        .center
+                        .distance(parent_ring.center)
+                }))
+                .fold(0.0, f32::max);
+            let reach = 2.0 * (parent_ring.diameter + h.rings[ring as usize].diameter) + segment;
+            if distance > reach.max(f32::EPSILON) {
+                warnings.push(AnalysisWarning::BranchAttachedFar { ring, distance });
+            }
+            queue.push(ring);
+            h.grow(&mut queue, positions, &adjacency)?;
+        }
+        if let Some(v) = (0..n).find(|&v| used[v] && h.vertex_ring[v] == NO_RING) {
+            let piece = components([v as u32], &adjacency, |_| true);
+            return Err(TreeAnalysisError::DetachedTrunkPiece {
+                position: positions[v],
+                vertices: piece.first().map_or(1, Vec::len),
+            });
+        }
+        Ok(h)
+    }
+
+    fn nearest_ring(&self, p: Vec3) -> (u32, f32) {
+        let mut best = (NO_RING, f32::INFINITY);
+        for (i, r) in self.rings.iter().enumerate() {
+            let d = r.center.distance(p);
+            if d < best.1 {
+                best = (i as u32, d);
+            }
+        }
+        best
+    }
+
+    /// Breadth-first: the unvisited neighbours of each ring, split into connected
+    /// components, are its child rings.
+    fn grow(
+        &mut self,
+        queue: &mut Vec<u32>,
+        positions: &[Vec3],
+        adjacency: &Adjacency,
+    ) -> Result<(), TreeAnalysisError> {
+        let mut head = 0;
+        let mut candidates = Vec::new();
+        while head < queue.len() {
+            let ring = queue[head];
+            head += 1;
+            candidates.clear();
+            let r = &self.rings[ring as usize];
+            for &v in r.loop_vertices.iter().chain(&r.extra_vertices) {
+                for &w in adjacency.of(v) {
+                    if self.vertex_ring[w as usize] == NO_RING {
+                        candidates.push(w);
+                    }
+                }
+            }
+            candidates.sort_unstable();
+            candidates.dedup();
+            let set: &[u32] = &candidates;
+            for component in components(set.iter().copied(), adjacency, |w| {
+                set.binary_search(&w).is_ok()
+            }) {
+                let child = self.add_ring(component, ring, positions, adjacency)?;
+                queue.push(child);
+            }
+        }
+        queue.clear();
+        Ok(())
+    }
+
+    /// Validates a loop of vertices as a ring and adds it.
+    fn add_ring(
+        &mut self,
+        vertices: Vec<u32>,
+        parent: u32,
+        positions: &[Vec3],
+        adjacency: &Adjacency,
+    ) -> Result<u32, TreeAnalysisError> {
+        let inside = |v: u32| vertices.contains(&v);
+        let degree = |v: u32| adjacency.of(v).iter().filter(|&&w| inside(w)).count();
+        // A single hub joined to every other vertex is a cap's centre, not part of the loop
+        // (two such vertices are a quad with a diagonal: both belong to the loop).
+        let hubs: Vec<u32> = vertices
+            .iter()
+            .copied()
+            .filter(|&v| vertices.len() >= 4 && degree(v) == vertices.len() - 1)
+            .collect();
+        let (extra, loop_vertices): (Vec<u32>, Vec<u32>) = if hubs.len() == 1 {
+            vertices.iter().partition(|&&v| v == hubs[0])
+        } else {
+            (Vec::new(), vertices.clone())
+        };
+        let center = mean(loop_vertices.iter().map(|&v| positions[v as usize]));
+        if loop_vertices.len() > 1 {
+            let in_loop = |w: u32| loop_vertices.contains(&w);
+            for &v in &loop_vertices {
+                let neighbours = adjacency.of(v).iter().filter(|&&w| in_loop(w)).count();
+                if neighbours < 2 {
+                    return Err(TreeAnalysisError::OpenRing {
+                        position: center,
+                        vertices: loop_vertices.len(),
+                        vertex: v,
+                        neighbours,
+                    });
+                }
+            }
+        }
+        let diameter = 2.0
+            * loop_vertices
+                .iter()
+                .map(|&v| positions[v as usize].distance(center))
+                .sum::<f32>()
+            / loop_vertices.len() as f32;
+        let id = self.rings.len() as u32;
+        for &v in loop_vertices.iter().chain(&extra) {
+            self.vertex_ring[v as usize] = id;
+        }
+        let level = if parent == NO_RING {
+            0
+        } else {
+            self.rings[parent as usize].level + 1
+        };
+        self.rings.push(RingBuild {
+            loop_vertices,
+            extra_vertices: extra,
+            center,
+            diameter,
+            parent,
+            level,
+        });
+        Ok(id)
+    }
+
+    fn into_model(
+        self,
+        mesh: WeldedMesh,
+        input: &MeshData,
+        options: &AnalysisOptions,
+    ) -> Result<TreeModel, TreeAnalysisError> {
+        let Self {
+            rings: built,
+            mut vertex_ring,
+            triangles,
+        } = self;
+        // Vertices no triangle uses belong to no ring; point them at ring 0 so per-vertex
+        // ring lookups on the GPU stay in range.
+        for r in &mut vertex_ring {
+            if *r == NO_RING {
+                *r = 0;
+            }
+        }
+        let mut rings: Vec<Ring> = built
+            .iter()
+            .map(|r| Ring {
+                center: r.center,
+                diameter: r.diameter,
+                parent: r.parent,
+                children: Vec::new(),
+                level: r.level,
+                distance_to_parent: if r.parent == NO_RING {
+                    0.0
+                } else {
+                    r.center.distance(built[r.parent as usize].center)
+                },
+                vertices: 0..0,
+                leaf_group: None,
+            })
+            .collect();
+        for i in 0..rings.len() {
+            let p = rings[i].parent;
+            if p != NO_RING {
+                rings[p as usize].children.push(i as u32);
+            }
+        }
+        let mut ring_vertices = Vec::new();
+        let mut ring_vectors = Vec::new();
+        for (ring, b) in rings.iter_mut().zip(&built) {
+            let start = ring_vertices.len() as u32;
+            for &v in &b.loop_vertices {
+                ring_vertices.push(v);
+                ring_vectors.push(mesh.positions[v as usize] - b.center);
+            }
+            ring.vertices = start..ring_vertices.len() as u32;
+        }
+
+        // Each triangle belongs to the segment ending at its deepest ring; a root cap goes
+        // to the root's first child.
+        let mut segment_of_triangle = Vec::with_capacity(triangles.len());
+        for t in &triangles {
+            let mut ring = t
+                .iter()
+                .map(|&v| vertex_ring[v as usize])
+                .max_by_key(|&r| (rings[r as usize].level, r))
+                .unwrap_or(0);
+            if rings[ring as usize].is_root() {
+                match rings[ring as usize].children.first() {
+                    Some(&c) => ring = c,
+                    None => {
+                        return Err(TreeAnalysisError::NoSegment {
+                            position: rings[ring as usize].center,
+                        });
+                    }
+                }
+            }
+            segment_of_triangle.push(ring);
+        }
+        let mut order: Vec<u32> = (0..rings.len() as u32)
+            .filter(|&r| !rings[r as usize].is_root())
+            .collect();
+        let segment_diameter = |r: u32| {
+            rings[r as usize]
+                .diameter
+                .max(rings[rings[r as usize].parent as usize].diameter)
+        };
+        order.sort_by(|&a, &b| {
+            segment_diameter(a)
+                .total_cmp(&segment_diameter(b))
+                .then(a.cmp(&b))
+        });
+        let mut slot = vec![u32::MAX; rings.len()];
+        for (s, &r) in order.iter().enumerate() {
+            slot[r as usize] = s as u32;
+        }
+        let mut counts = vec![0_u32; order.len() + 1];
+        for &r in &segment_of_triangle {
+            counts[slot[r as usize] as usize + 1] += 1;
+        }
+        for s in 0..order.len() {
+            counts[s + 1] += counts[s];
+        }
+        let triangle_offsets = counts.clone();
+        let mut cursor = counts;
+        let mut trunk_indices = vec![0_u32; triangles.len() * 3];
+        for (t, &r) in triangles.iter().zip(&segment_of_triangle) {
+            let s = slot[r as usize] as usize;
+            let at = cursor[s] as usize * 3;
+            trunk_indices[at..at + 3].copy_from_slice(t);
+            cursor[s] += 1;
+        }
+        let mut segments = Segments {
+            triangle_offsets,
+            ..Segments::default()
+        };
+        let mut total_length = 0.0;
+        for &r in &order {
+            let ring = &rings[r as usize];
+            let lower = rings[ring.parent as usize].center;
+            segments.ring.push(r);
+            segments.line.push([lower, ring.center]);
+            segments.diameter.push(segment_diameter(r));
+            total_length += lower.distance(ring.center);
+            segments.cumulative_length.push(total_length);
+        }
+
+        let positions = mesh.positions;
+        let mut area_sum = 0.0_f32;
+        let mut area_center = Vec3::ZERO;
+        for t in trunk_indices.chunks_exact(3) {
+            let p = [0, 1, 2].map(|i| positions[t[i] as usize]);
+            let area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+            area_sum += area;
+            area_center += area * (p[0] + p[1] + p[2]) / 3.0;
+        }
+        let trunk_bounds = Bounds::from_points(positions.iter().copied());
+        let triangle_count = (trunk_indices.len() / 3).max(1) as f32;
+        Ok(TreeModel {
+            rings,
+            ring_vertices,
+            ring_vectors,
+            segments,
+            trunk_normals: mesh.normals,
+            trunk_vertex_ring: vertex_ring,
+            trunk_indices,
+            mean_trunk_triangle_area: area_sum / triangle_count,
+            trunk_area_center: if area_sum > 0.0 {
+                area_center / area_sum
+            } else {
+                trunk_bounds.center()
+            },
+            trunk_positions: positions,
+            leaf_positions: Vec::new(),
+            leaf_normals: Vec::new(),
+            leaf_vertex_leaf: Vec::new(),
+            leaf_indices: Vec::new(),
+            leaves: Vec::new(),
+            leaf_groups: Vec::new(),
+            bounds: trunk_bounds,
+            trunk_bounds,
+            mean_leaf_triangle_area: 0.0,
+            bark_color: input.color.unwrap_or(options.default_bark_color),
+            leaf_color: options.default_leaf_color,
+        })
+    }
+}
+
+/// Connected components of `seeds` through edges whose both ends satisfy `member`.
+fn components(
+    seeds: impl IntoIterator<Item = u32>,
+    adjacency: &Adjacency,
+    member: impl Fn(u32) -> bool,
+) -> Vec<Vec<u32>> {
+    let mut seen: HashMap<u32, ()> = HashMap::new();
+    let mut out = Vec::new();
+    for seed in seeds {
+        if seen.contains_key(&seed) {
+            continue;
+        }
+        let mut component = vec![seed];
+        seen.insert(seed, ());
+        let mut i = 0;
+        while i < component.len() {
+            let v = component[i];
+            i += 1;
+            for &w in adjacency.of(v) {
+                if member(w) && !seen.contains_key(&w) {
+                    seen.insert(w, ());
+                    component.push(w);
+                }
+            }
+        }
+        component.sort_unstable();
+        out.push(component);
+    }
+    out
+}
+
+/// Loops of boundary edges (edges used by one triangle): the open ends of tubes.
+fn boundary_loops(triangles: &[[u32; 3]], vertices: usize) -> Vec<Vec<u32>> {
+    let mut edges: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    edges.sort_unstable();
+    let mut boundary = Vec::new();
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i;
+        while j < edges.len() && edges[j] == edges[i] {
+            j += 1;
+        }
+        if j - i == 1 {
+            boundary.push(edges[i]);
+            boundary.push((edges[i].1, edges[i].0));
+        }
+        i = j;
+    }
+    boundary.sort_unstable();
+    let mut offsets = vec![0_u32; vertices + 1];
+    for &(a, _) in &boundary {
+        offsets[a as usize + 1] += 1;
+    }
+    for v in 0..vertices {
+        offsets[v + 1] += offsets[v];
+    }
+    let adjacency = Adjacency {
+        offsets,
+        neighbours: boundary.iter().map(|&(_, b)| b).collect(),
+    };
+    let on_boundary: Vec<bool> = (0..vertices as u32)
+        .map(|v| !adjacency.of(v).is_empty())
+        .collect();
+    components(
+        (0..vertices as u32).filter(|&v| on_boundary[v as usize]),
+        &adjacency,
+        |_| true,
+    )
+}
+
+fn mean(points: impl Iterator<Item = Vec3>) -> Vec3 {
+    let (sum, n) = points.fold((Vec3::ZERO, 0_u32), |(s, n), p| (s + p, n + 1));
+    if n == 0 { Vec3::ZERO } else { sum / n as f32 }
+}
+
+/// Splits the leaves mesh into leaves (connected patches), groups them by nearest
+/// terminal ring, and stores them in the model.
+fn attach_leaves(
+    model: &mut TreeModel,
+    mesh: WeldedMesh,
+    first: u32,
+    input: &MeshData,
+    options: &AnalysisOptions,
+    warnings: &mut Vec<AnalysisWarning>,
+) {
+    model.leaf_color = input.color.unwrap_or(options.default_leaf_color);
+    let n = mesh.positions.len();
+    let triangles: Vec<[u32; 3]> = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| v - first))
+        .collect();
+    if triangles.is_empty() {
+        return;
+    }
+    // Union-find over vertices: each connected patch is one leaf.
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            parent[v as usize] = parent[parent[v as usize] as usize];
+            v = parent[v as usize];
+        }
+        v
+    }
+    for t in &triangles {
+        let a = find(&mut parent, t[0]);
+        for &v in &t[1..] {
+            let b = find(&mut parent, v);
+            parent[b as usize] = a;
+        }
+    }
+    let mut leaf_of_root: HashMap<u32, usize> = HashMap::new();
+    let mut leaf_triangles: Vec<Vec<[u32; 3]>> = Vec::new();
+    for t in &triangles {
+        let root = find(&mut parent, t[0]);
+        let leaf = *leaf_of_root.entry(root).or_insert_with(|| {
+            leaf_triangles.push(Vec::new());
+            leaf_triangles.len() - 1
+        });
+        leaf_triangles[leaf].push(*t);
+    }
+
+    let positions = &mesh.positions;
+    let terminals: Vec<u32> = (0..model.rings.len() as u32)
+        .filter(|&r| model.rings[r as usize].is_terminal())
+        .collect();
+    let mut zero_area = 0;
+    let mut total_area = 0.0;
+    // (group ring, centre, normal, triangles)
+    let mut built: Vec<(u32, Vec3, Vec3, &Vec<[u32; 3]>)> =
+        Vec::with_capacity(leaf_triangles.len());
+    for tris in &leaf_triangles {
+        let mut area = 0.0;
+        let mut center = Vec3::ZERO;
+        let mut normal = Vec3::ZERO;
+        let mut vertex_normal = Vec3::ZERO;
+        for t in tris {
+            let p = t.map(|v| positions[v as usize]);
+            let cross = (p[1] - p[0]).cross(p[2] - p[0]);
+            let a = 0.5 * cross.length();
+            area += a;
+            center += a * (p[0] + p[1] + p[2]) / 3.0;
+            normal += cross;
+            vertex_normal += t.iter().map(|&v| mesh.normals[v as usize]).sum::<Vec3>();
+        }
+        total_area += area;
+        let center = if area > 0.0 {
+            center / area
+        } else {
+            zero_area += 1;
+            mean(tris.iter().flatten().map(|&v| positions[v as usize]))
+        };
+        let mut normal = normal.try_normalize().unwrap_or(Vec3::Y);
+        if normal.dot(vertex_normal) < 0.0 {
+            normal = -normal; // agree with the mesh's own normals
+        }
+        let ring = terminals
+            .iter()
+            .copied()
+            .min_by(|&a, &b| {
+                let da = model.rings[a as usize].center.distance_squared(center);
+                let db = model.rings[b as usize].center.distance_squared(center);
+                da.total_cmp(&db)
+            })
+            .unwrap_or(0);
+        built.push((ring, center, normal, tris));
+    }
+    if zero_area > 0 {
+        warnings.push(AnalysisWarning::ZeroAreaLeaves { count: zero_area });
+    }
+
+    // Groups in terminal-ring order; leaves near → far from their group's centre.
+    let mut by_ring: HashMap<u32, Vec<usize>> = HashMap::new();
+    for (i, b) in built.iter().enumerate() {
+        by_ring.entry(b.0).or_default().push(i);
+    }
+    let mut leaf_vertex_leaf = vec![u32::MAX; n];
+    for &ring in &terminals {
+        let Some(mut members) = by_ring.remove(&ring) else {
+            continue;
+        };
+        let bounds = Bounds::from_points(
+            members
+                .iter()
+                .flat_map(|&i| built[i].3.iter().flatten())
+                .map(|&v| positions[v as usize]),
+        );
+        let center = bounds.center();
+        let radius = members
+            .iter()
+            .flat_map(|&i| built[i].3.iter().flatten())
+            .map(|&v| positions[v as usize].distance(center))
+            .fold(0.0, f32::max);
+        members.sort_by(|&a, &b| {
+            built[a]
+                .1
+                .distance_squared(center)
+                .total_cmp(&built[b].1.distance_squared(center))
+        });
+        let group = model.leaf_groups.len() as u32;
+        let start = model.leaves.len() as u32;
+        for i in members {
+            let (_, c, nrm, tris) = &built[i];
+            let leaf = model.leaves.len() as u32;
+            let first_triangle = (model.leaf_indices.len() / 3) as u32;
+            for t in tris.iter() {
+                model.leaf_indices.extend_from_slice(t);
+                for &v in t {
+                    leaf_vertex_leaf[v as usize] = leaf;
+                }
+            }
+            model.leaves.push(Leaf {
+                center: *c,
+                normal: *nrm,
+                triangles: first_triangle..(model.leaf_indices.len() / 3) as u32,
+            });
+        }
+        model.leaf_groups.push(LeafGroup {
+            ring,
+            bounds: BoundingSphere { center, radius },
+            leaves: start..model.leaves.len() as u32,
+        });
+        model.rings[ring as usize].leaf_group = Some(group);
+    }
+    // Vertices no triangle uses belong to no leaf; give them the first leaf so every
+    // per-vertex array stays valid for the renderer.
+    for l in &mut leaf_vertex_leaf {
+        if *l == u32::MAX {
+            *l = 0;
+        }
+    }
+    model.leaf_vertex_leaf = leaf_vertex_leaf;
+    model.mean_leaf_triangle_area = total_area / triangles.len() as f32;
+    model.bounds = model
+        .trunk_bounds
+        .union(Bounds::from_points(positions.iter().copied()));
+    model.leaf_positions = mesh.positions;
+    model.leaf_normals = mesh.normals;
+}

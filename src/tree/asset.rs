@@ -1,0 +1,286 @@
+//! Tree assets: species descriptions generated and analysed at load time
+//! (`*.species.ron`), and analysed models saved to disk so large trees are analysed once
+//! (`*.tree.ron`, readable, or `*.tree.bin`, compact and fast).
+
+use bevy::app::{App, Plugin};
+use bevy::asset::io::Reader;
+use bevy::asset::{AssetApp, AssetLoader, LoadContext};
+use bevy::log::warn;
+use bevy::reflect::TypePath;
+
+use super::NO_RING;
+use super::model::TreeModel;
+use super::species::{SpeciesDesc, SpeciesError};
+
+/// First bytes of a `*.tree.bin` file.
+pub const BINARY_MAGIC: &[u8; 8] = b"SHWDTREE";
+/// Version of the binary layout; files of another version are refused with a clear error.
+pub const BINARY_VERSION: u32 = 1;
+
+/// Why a tree file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum TreeFileError {
+    /// Reading failed.
+    #[error("could not read the file: {0}")]
+    Io(#[from] std::io::Error),
+    /// The text is not UTF-8.
+    #[error("the file is not UTF-8 text: {0}")]
+    Utf8(#[from] core::str::Utf8Error),
+    /// A species description is malformed or out of range.
+    #[error("{0}")]
+    Species(#[from] SpeciesError),
+    /// A saved model's RON does not parse (the message names line, column and field).
+    #[error("{0}")]
+    Ron(#[from] ron::error::SpannedError),
+    /// A saved binary model is not one, or of another version.
+    #[error("not a bevy_sherwood tree file of version {BINARY_VERSION}: {0}")]
+    Header(String),
+    /// A saved binary model does not decode.
+    #[error("the binary model does not decode: {0}")]
+    Binary(#[from] postcard::Error),
+    /// A saved model decodes but is inconsistent.
+    #[error("inconsistent model: {field}: {detail}")]
+    Inconsistent {
+        /// The field at fault.
+        field: &'static str,
+        /// What is wrong.
+        detail: String,
+    },
+}
+
+fn inconsistent(field: &'static str, detail: impl Into<String>) -> TreeFileError {
+    TreeFileError::Inconsistent {
+        field,
+        detail: detail.into(),
+    }
+}
+
+impl TreeModel {
+    /// Checks that every index and range points inside its array and every number is
+    /// finite, so that a hand-edited or corrupted file cannot make the renderer or the
+    /// LOD read out of bounds later.
+    pub fn validate(&self) -> Result<(), TreeFileError> {
+        let rings = self.rings.len();
+        let trunk_vertices = self.trunk_positions.len();
+        let leaf_vertices = self.leaf_positions.len();
+        let in_range =
+            |field, values: &[u32], len: usize| match values.iter().find(|&&v| v as usize >= len) {
+                Some(v) => Err(inconsistent(
+                    field,
+                    format!("index {v} is out of range (length {len})"),
+                )),
+                None => Ok(()),
+            };
+        let finite =
+            |field, values: &[bevy::math::Vec3]| match values.iter().position(|v| !v.is_finite()) {
+                Some(i) => Err(inconsistent(field, format!("element {i} is not finite"))),
+                None => Ok(()),
+            };
+        finite("trunk_positions", &self.trunk_positions)?;
+        finite("trunk_normals", &self.trunk_normals)?;
+        finite("leaf_positions", &self.leaf_positions)?;
+        finite("leaf_normals", &self.leaf_normals)?;
+        finite("ring_vectors", &self.ring_vectors)?;
+        if self.trunk_normals.len() != trunk_vertices
+            || self.trunk_vertex_ring.len() != trunk_vertices
+        {
+            return Err(inconsistent(
+                "trunk_normals",
+                "trunk vertex arrays differ in length",
+            ));
+        }
+        if self.leaf_normals.len() != leaf_vertices || self.leaf_vertex_leaf.len() != leaf_vertices
+        {
+            return Err(inconsistent(
+                "leaf_normals",
+                "leaf vertex arrays differ in length",
+            ));
+        }
+        if self.ring_vectors.len() != self.ring_vertices.len() {
+            return Err(inconsistent("ring_vectors", "must parallel ring_vertices"));
+        }
+        if !self.trunk_indices.len().is_multiple_of(3) || !self.leaf_indices.len().is_multiple_of(3)
+        {
+            return Err(inconsistent(
+                "trunk_indices",
+                "index counts must be multiples of 3",
+            ));
+        }
+        in_range("trunk_indices", &self.trunk_indices, trunk_vertices)?;
+        in_range("leaf_indices", &self.leaf_indices, leaf_vertices)?;
+        in_range("ring_vertices", &self.ring_vertices, trunk_vertices)?;
+        in_range("trunk_vertex_ring", &self.trunk_vertex_ring, rings)?;
+        in_range(
+            "leaf_vertex_leaf",
+            &self.leaf_vertex_leaf,
+            self.leaves.len().max(1),
+        )?;
+        for (i, r) in self.rings.iter().enumerate() {
+            if (r.parent != NO_RING && r.parent as usize >= rings)
+                || r.children.iter().any(|&c| c as usize >= rings)
+                || r.vertices.start > r.vertices.end
+                || r.vertices.end as usize > self.ring_vertices.len()
+                || r.leaf_group
+                    .is_some_and(|g| g as usize >= self.leaf_groups.len())
+                || !r.center.is_finite()
+                || !r.diameter.is_finite()
+            {
+                return Err(inconsistent(
+                    "rings",
+                    format!("ring {i} points outside the model"),
+                ));
+            }
+        }
+        let s = &self.segments;
+        let n = s.ring.len();
+        if s.triangle_offsets.len() != n + 1
+            || s.line.len() != n
+            || s.diameter.len() != n
+            || s.cumulative_length.len() != n
+        {
+            return Err(inconsistent("segments", "parallel arrays differ in length"));
+        }
+        in_range("segments.ring", &s.ring, rings)?;
+        if s.triangle_offsets.windows(2).any(|w| w[0] > w[1])
+            || s.triangle_offsets.first().is_some_and(|&o| o != 0)
+            || s.triangle_offsets
+                .last()
+                .is_some_and(|&o| o as usize * 3 != self.trunk_indices.len())
+        {
+            return Err(inconsistent(
+                "segments.triangle_offsets",
+                "must rise from 0 to the trunk's triangle count",
+            ));
+        }
+        let leaf_triangles = (self.leaf_indices.len() / 3) as u32;
+        for (i, leaf) in self.leaves.iter().enumerate() {
+            if leaf.triangles.start > leaf.triangles.end || leaf.triangles.end > leaf_triangles {
+                return Err(inconsistent(
+                    "leaves",
+                    format!("leaf {i} points outside leaf_indices"),
+                ));
+            }
+        }
+        for (i, g) in self.leaf_groups.iter().enumerate() {
+            if g.ring as usize >= rings
+                || g.leaves.start > g.leaves.end
+                || g.leaves.end as usize > self.leaves.len()
+                || !g.bounds.radius.is_finite()
+            {
+                return Err(inconsistent(
+                    "leaf_groups",
+                    format!("group {i} points outside the model"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The model as RON text (readable, diffable; slower to load than binary).
+    pub fn to_ron_string(&self) -> Result<String, ron::Error> {
+        ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::default().compact_arrays(true))
+    }
+
+    /// Parses and validates a model saved with [`TreeModel::to_ron_string`].
+    pub fn from_ron_str(text: &str) -> Result<Self, TreeFileError> {
+        let model: Self = ron::from_str(text)?;
+        model.validate()?;
+        Ok(model)
+    }
+
+    /// The model in the compact binary format of `*.tree.bin`.
+    pub fn to_binary(&self) -> Result<Vec<u8>, postcard::Error> {
+        let mut out = Vec::with_capacity(BINARY_MAGIC.len() + 4);
+        out.extend_from_slice(BINARY_MAGIC);
+        out.extend_from_slice(&BINARY_VERSION.to_le_bytes());
+        postcard::to_extend(self, out)
+    }
+
+    /// Decodes and validates a model saved with [`TreeModel::to_binary`].
+    pub fn from_binary(bytes: &[u8]) -> Result<Self, TreeFileError> {
+        let header = BINARY_MAGIC.len() + 4;
+        if bytes.len() < header || &bytes[..BINARY_MAGIC.len()] != BINARY_MAGIC {
+            return Err(TreeFileError::Header("missing magic bytes".into()));
+        }
+        let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+        if version != BINARY_VERSION {
+            return Err(TreeFileError::Header(format!("file is version {version}")));
+        }
+        let model: Self = postcard::from_bytes(&bytes[header..])?;
+        model.validate()?;
+        Ok(model)
+    }
+}
+
+/// Loads `*.species.ron`: generates the species' meshes and analyses them into a
+/// [`TreeModel`].
+#[derive(Default, TypePath)]
+pub struct SpeciesLoader;
+
+impl AssetLoader for SpeciesLoader {
+    type Asset = TreeModel;
+    type Settings = ();
+    type Error = TreeFileError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        load_context: &mut LoadContext<'_>,
+    ) -> Result<TreeModel, TreeFileError> {
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).await?;
+        let species = SpeciesDesc::from_ron_str(core::str::from_utf8(&bytes)?)?;
+        let analysis = species.generate_and_analyze()?;
+        for warning in &analysis.warnings {
+            warn!("{}: {warning:?}", load_context.path());
+        }
+        Ok(analysis.model)
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["species.ron"]
+    }
+}
+
+/// Loads analysed models saved with [`TreeModel::to_ron_string`] (`*.tree.ron`) or
+/// [`TreeModel::to_binary`] (`*.tree.bin`).
+#[derive(Default, TypePath)]
+pub struct TreeModelLoader;
+
+impl AssetLoader for TreeModelLoader {
+    type Asset = TreeModel;
+    type Settings = ();
+    type Error = TreeFileError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        _load_context: &mut LoadContext<'_>,
+    ) -> Result<TreeModel, TreeFileError> {
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).await?;
+        if bytes.starts_with(BINARY_MAGIC) {
+            TreeModel::from_binary(&bytes)
+        } else {
+            TreeModel::from_ron_str(core::str::from_utf8(&bytes)?)
+        }
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["tree.ron", "tree.bin"]
+    }
+}
+
+/// Registers [`TreeModel`] assets and their loaders.
+#[derive(Default)]
+pub struct TreePlugin;
+
+impl Plugin for TreePlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<TreeModel>()
+            .register_asset_loader(SpeciesLoader)
+            .register_asset_loader(TreeModelLoader);
+    }
+}

@@ -1,0 +1,21 @@
+//! Trees: the ring-hierarchy model ([`TreeModel`]), its analysis from meshes
+//! ([`analyze`]), a procedural generator of species ([`SpeciesDesc`]), and the assets
+//! that load them ([`TreePlugin`]).
+
+mod analyze;
+mod asset;
+mod model;
+mod species;
+
+pub use analyze::{
+    AnalysisOptions, AnalysisWarning, MeshData, TreeAnalysis, TreeAnalysisError, TreePart, analyze,
+};
+pub use asset::{
+    BINARY_MAGIC, BINARY_VERSION, SpeciesLoader, TreeFileError, TreeModelLoader, TreePlugin,
+};
+pub use model::{
+    BoundingSphere, Bounds, Leaf, LeafGroup, LinearRgb, NO_RING, Ring, Segments, TreeModel,
+};
+pub use species::{
+    BranchLevel, GeneratedTree, LeafDesc, LeafShape, SpeciesDesc, SpeciesError, tube,
+};

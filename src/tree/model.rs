@@ -1,0 +1,262 @@
+//! The analysed tree: a hierarchy of rings (the ends of generalized cylinders), the
+//! trunk segments between them sorted thin → thick, and the leaves gathered in groups
+//! around terminal rings — everything the LOD, culling, wind and the renderer read.
+
+use core::ops::Range;
+
+use bevy::asset::Asset;
+use bevy::math::Vec3;
+use bevy::reflect::TypePath;
+use serde::{Deserialize, Serialize};
+
+/// Marks "no ring" in [`Ring::parent`].
+pub const NO_RING: u32 = u32::MAX;
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Bounds {
+    /// Smallest corner.
+    pub min: Vec3,
+    /// Largest corner.
+    pub max: Vec3,
+}
+
+impl Bounds {
+    /// The empty box (contains nothing, grows to the first point added).
+    pub const EMPTY: Self = Self {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    /// The smallest box around `points` ([`Bounds::EMPTY`] for none).
+    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
+        points.into_iter().fold(Self::EMPTY, Self::grown)
+    }
+
+    /// This box grown to contain `p`.
+    pub fn grown(self, p: Vec3) -> Self {
+        Self {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    /// The smallest box containing both.
+    pub fn union(self, other: Self) -> Self {
+        Self {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
+    /// Whether `p` lies inside or on the box, with `tolerance` slack.
+    pub fn contains(&self, p: Vec3, tolerance: f32) -> bool {
+        p.cmpge(self.min - tolerance).all() && p.cmple(self.max + tolerance).all()
+    }
+
+    /// Centre of the box.
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Half the box's extent along each axis.
+    pub fn half_extents(&self) -> Vec3 {
+        (self.max - self.min) * 0.5
+    }
+
+    /// Whether the box contains no point.
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+}
+
+/// A bounding sphere.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BoundingSphere {
+    /// Centre.
+    pub center: Vec3,
+    /// Radius.
+    pub radius: f32,
+}
+
+/// A ring ("radio" in the thesis): the loop of vertices where two generalized cylinders
+/// meet, one node of the trunk hierarchy.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ring {
+    /// Average of its vertices.
+    pub center: Vec3,
+    /// Average distance from the centre to its vertices, doubled (0 for a branch tip).
+    pub diameter: f32,
+    /// Parent ring, or [`NO_RING`] for a root ring.
+    pub parent: u32,
+    /// Child rings.
+    pub children: Vec<u32>,
+    /// Depth in the hierarchy: 0 for a root ring.
+    pub level: u32,
+    /// Distance from the parent ring's centre (0 for a root ring).
+    pub distance_to_parent: f32,
+    /// Range of this ring's vertices in [`TreeModel::ring_vertices`] and
+    /// [`TreeModel::ring_vectors`].
+    pub vertices: Range<u32>,
+    /// Leaf group hanging from this ring, if it is terminal and has leaves.
+    pub leaf_group: Option<u32>,
+}
+
+impl Ring {
+    /// A ring with no children: a branch ends here.
+    pub fn is_terminal(&self) -> bool {
+        self.children.is_empty()
+    }
+
+    /// A ring without a parent: the bottom of a hierarchy.
+    pub fn is_root(&self) -> bool {
+        self.parent == NO_RING
+    }
+}
+
+/// The trunk segments — two connected rings each — sorted by diameter ascending, as
+/// parallel arrays (index `s` in each describes segment `s`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Segments {
+    /// The segment's upper ring; its lower ring is that ring's parent.
+    pub ring: Vec<u32>,
+    /// Prefix offsets into [`TreeModel::trunk_indices`], in triangles: segment `s` owns
+    /// triangles `triangle_offsets[s]..triangle_offsets[s + 1]`. Length `segments + 1`.
+    /// Segments may own different numbers of triangles (a branch joined to its parent by
+    /// proximity owns none).
+    pub triangle_offsets: Vec<u32>,
+    /// The line drawn instead of the triangles: the two ring centres (lower, upper).
+    pub line: Vec<[Vec3; 2]>,
+    /// The larger of its two rings' diameters.
+    pub diameter: Vec<f32>,
+    /// Length of this and every thinner segment's line: `cumulative_length[s]` is the
+    /// summed length of segments `0..=s`.
+    pub cumulative_length: Vec<f32>,
+}
+
+impl Segments {
+    /// Number of segments.
+    pub fn len(&self) -> usize {
+        self.ring.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.ring.is_empty()
+    }
+
+    /// Triangles of segment `s`, as a range of triangle indices.
+    pub fn triangles(&self, s: usize) -> Range<u32> {
+        self.triangle_offsets[s]..self.triangle_offsets[s + 1]
+    }
+}
+
+/// The leaves around one terminal ring.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LeafGroup {
+    /// The terminal ring the group hangs from (wind moves the group with it).
+    pub ring: u32,
+    /// Bounding sphere of every leaf vertex of the group.
+    pub bounds: BoundingSphere,
+    /// The group's leaves in [`TreeModel::leaves`], sorted near → far from the centre.
+    pub leaves: Range<u32>,
+}
+
+/// One leaf: a connected patch of leaf triangles (often a single triangle or a quad).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Leaf {
+    /// Area-weighted centre of its triangles: where its point is drawn.
+    pub center: Vec3,
+    /// Area-weighted unit normal: how its point is lit.
+    pub normal: Vec3,
+    /// Its triangles in [`TreeModel::leaf_indices`].
+    pub triangles: Range<u32>,
+}
+
+/// Linear RGB colour, as stored in models (the renderer converts it).
+pub type LinearRgb = [f32; 3];
+
+/// An analysed tree type. Built by [`analyze`](super::analyze) from a trunk mesh and a
+/// leaves mesh, or loaded from a species or model file.
+///
+/// Geometry is stored once per tree type, reorganised so that every LOD decision is a
+/// contiguous range: trunk triangles grouped by segment (thin → thick), leaf triangles
+/// grouped by leaf, leaves grouped by leaf group (near → far within a group).
+#[derive(Asset, TypePath, Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TreeModel {
+    /// The rings of every hierarchy; root rings have no parent.
+    pub rings: Vec<Ring>,
+    /// Trunk vertex index of every ring vertex, ring by ring (see [`Ring::vertices`]).
+    pub ring_vertices: Vec<u32>,
+    /// Vector from the ring's centre to each ring vertex, parallel to `ring_vertices`.
+    pub ring_vectors: Vec<Vec3>,
+    /// The trunk segments, sorted thin → thick.
+    pub segments: Segments,
+
+    /// Trunk vertex positions (welded).
+    pub trunk_positions: Vec<Vec3>,
+    /// Trunk vertex normals.
+    pub trunk_normals: Vec<Vec3>,
+    /// The ring every trunk vertex belongs to, for per-ring wind offsets on the GPU.
+    pub trunk_vertex_ring: Vec<u32>,
+    /// Trunk triangles (three vertex indices each), grouped by segment in segment order.
+    pub trunk_indices: Vec<u32>,
+
+    /// Leaf vertex positions (welded).
+    pub leaf_positions: Vec<Vec3>,
+    /// Leaf vertex normals.
+    pub leaf_normals: Vec<Vec3>,
+    /// The leaf every leaf vertex belongs to.
+    pub leaf_vertex_leaf: Vec<u32>,
+    /// Leaf triangles (three vertex indices each), grouped by leaf in leaf order.
+    pub leaf_indices: Vec<u32>,
+    /// Every leaf, grouped by leaf group, near → far within each group.
+    pub leaves: Vec<Leaf>,
+    /// The leaf groups.
+    pub leaf_groups: Vec<LeafGroup>,
+
+    /// Box around the whole tree.
+    pub bounds: Bounds,
+    /// Box around the trunk only.
+    pub trunk_bounds: Bounds,
+    /// Mean area of a leaf triangle.
+    pub mean_leaf_triangle_area: f32,
+    /// Mean area of a trunk triangle.
+    pub mean_trunk_triangle_area: f32,
+    /// Area-weighted centre of the trunk's triangles: projecting the trunk's area at this
+    /// point's depth beats using the box centre (thesis §4.2).
+    pub trunk_area_center: Vec3,
+    /// Colour lines are drawn with (mean bark colour).
+    pub bark_color: LinearRgb,
+    /// Colour points are drawn with (mean leaf colour).
+    pub leaf_color: LinearRgb,
+}
+
+impl TreeModel {
+    /// Number of trunk triangles.
+    pub fn trunk_triangle_count(&self) -> usize {
+        self.trunk_indices.len() / 3
+    }
+
+    /// Number of leaf triangles.
+    pub fn leaf_triangle_count(&self) -> usize {
+        self.leaf_indices.len() / 3
+    }
+
+    /// The ring vertices of ring `ring` (trunk vertex indices).
+    pub fn vertices_of(&self, ring: u32) -> &[u32] {
+        let r = &self.rings[ring as usize].vertices;
+        &self.ring_vertices[r.start as usize..r.end as usize]
+    }
+
+    /// The leaf group's leaves.
+    pub fn leaves_of(&self, group: usize) -> &[Leaf] {
+        let r = &self.leaf_groups[group].leaves;
+        &self.leaves[r.start as usize..r.end as usize]
+    }
+
+    /// Indices of the root rings.
+    pub fn roots(&self) -> impl Iterator<Item = u32> + '_ {
+        (0..self.rings.len() as u32).filter(|&r| self.rings[r as usize].is_root())
+    }
+}
