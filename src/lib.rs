@@ -14,6 +14,7 @@ pub mod prelude {
     pub use crate::budget::{
         BudgetProblem, BudgetStats, BudgetStrategy, FrameTimeModel, Level, RobinHood, ValueFunction,
     };
+    pub use crate::tree::{SpeciesDesc, TreeModel, TreePlugin};
     pub use crate::{SherwoodCorePlugin, SherwoodPlugins, SherwoodSystems};
 }
 

@@ -61,6 +61,8 @@ pub struct FunkhouserSequin {
     pub ordering: ValueOrdering,
     tuples: Vec<Tuple>,
     increments: Vec<Increment>,
+    bucket_costs: Vec<f64>,
+    boundary: Vec<Increment>,
     selection: Vec<u32>,
     hull: Vec<HullPoint>,
     used_single_best: bool,
@@ -73,6 +75,8 @@ impl Default for FunkhouserSequin {
             ordering: ValueOrdering::Hull,
             tuples: Vec::new(),
             increments: Vec::new(),
+            bucket_costs: Vec::new(),
+            boundary: Vec::new(),
             selection: Vec::new(),
             hull: Vec::new(),
             used_single_best: false,
@@ -152,7 +156,7 @@ impl FunkhouserSequin {
 
     /// The greedy over hull increments. Within an object they come in falling Value, so
     /// the greedy's answer is the longest prefix, in (Value ↓, object ↑) order, whose costs
-    /// fit; a weighted quickselect finds it in expected O(n) without sorting.
+    /// fit, found in O(n) by [`take_fitting_prefix`].
     fn hull_greedy(&mut self, problem: &BudgetProblem, budget: f64) -> f64 {
         self.increments.clear();
         for object in 0..problem.len() {
@@ -169,7 +173,8 @@ impl FunkhouserSequin {
             }
         }
         let selection = &mut self.selection;
-        take_fitting_prefix(&mut self.increments, budget, |inc| {
+        let (costs, boundary) = (&mut self.bucket_costs, &mut self.boundary);
+        take_fitting_prefix(&self.increments, budget, costs, boundary, |inc| {
             let current = &mut selection[inc.object as usize];
             let ladder = problem.ladder(inc.object as usize);
             // The object's deepest increment taken is its level (costs rise along a hull).
@@ -199,55 +204,69 @@ struct Increment {
     level: u32,
 }
 
-impl Increment {
-    /// Whether `self` comes before `other` in the greedy's order.
-    fn before(&self, other: &Self) -> bool {
-        match self.value.total_cmp(&other.value) {
-            core::cmp::Ordering::Greater => true,
-            core::cmp::Ordering::Less => false,
-            core::cmp::Ordering::Equal => self.object < other.object,
-        }
-    }
+/// Buckets of the Value histogram: the top 16 bits of a non-negative `f32`.
+const BUCKETS: usize = 1 << 16;
+
+fn bucket(value: f32) -> usize {
+    // Non-negative floats order like their bit patterns; NaN cannot occur (validated input).
+    (value.max(0.0).to_bits() >> 16) as usize
 }
 
 /// Calls `take` for every increment of the longest prefix (in greedy order) whose summed
-/// cost fits `budget`: the greedy with stop semantics, by weighted quickselect.
-fn take_fitting_prefix(items: &mut [Increment], mut budget: f64, mut take: impl FnMut(&Increment)) {
-    let mut slice = items;
-    while !slice.is_empty() {
-        // Median of three as pivot, moved to the end.
-        let (a, b, c) = (0, slice.len() / 2, slice.len() - 1);
-        let median = if slice[a].before(&slice[b]) == slice[b].before(&slice[c]) {
-            b
-        } else if slice[b].before(&slice[a]) == slice[a].before(&slice[c]) {
-            a
-        } else {
-            c
-        };
-        slice.swap(median, c);
-        let pivot = slice[c];
-        let mut front = 0;
-        let mut front_cost = 0.0_f64;
-        for i in 0..c {
-            if slice[i].before(&pivot) {
-                front_cost += f64::from(slice[i].cost);
-                slice.swap(i, front);
-                front += 1;
-            }
+/// cost fits `budget`: the greedy with stop semantics, without a full sort. One pass sums
+/// costs per Value bucket; walking buckets from the highest Value finds the bucket where
+/// the budget runs out; every increment above it is taken and only that bucket is sorted.
+fn take_fitting_prefix(
+    items: &[Increment],
+    budget: f64,
+    bucket_costs: &mut Vec<f64>,
+    boundary: &mut Vec<Increment>,
+    mut take: impl FnMut(&Increment),
+) {
+    let by_greedy_order =
+        |a: &Increment, b: &Increment| b.value.total_cmp(&a.value).then(a.object.cmp(&b.object));
+    boundary.clear();
+    if items.len() * 16 < BUCKETS {
+        // Few increments: sorting them beats clearing and walking the histogram.
+        boundary.extend_from_slice(items);
+        boundary.sort_unstable_by(by_greedy_order);
+        take_while_it_fits(boundary, budget, take);
+        return;
+    }
+    bucket_costs.clear();
+    bucket_costs.resize(BUCKETS, 0.0);
+    for item in items {
+        bucket_costs[bucket(item.value)] += f64::from(item.cost);
+    }
+    let mut left = budget;
+    let mut split = None;
+    for b in (0..BUCKETS).rev() {
+        if bucket_costs[b] > left {
+            split = Some(b);
+            break;
         }
-        slice.swap(front, c);
-        if front_cost > budget {
-            slice = &mut slice[..front];
-            continue;
+        left -= bucket_costs[b];
+    }
+    for item in items {
+        let b = bucket(item.value);
+        match split {
+            Some(s) if b == s => boundary.push(*item),
+            Some(s) if b < s => {}
+            _ => take(item),
         }
-        slice[..front].iter().for_each(&mut take);
-        budget -= front_cost;
-        if f64::from(pivot.cost) > budget {
+    }
+    boundary.sort_unstable_by(by_greedy_order);
+    take_while_it_fits(boundary, left, take);
+}
+
+/// Takes `sorted` increments in order until the first that does not fit.
+fn take_while_it_fits(sorted: &[Increment], mut left: f64, mut take: impl FnMut(&Increment)) {
+    for item in sorted {
+        if f64::from(item.cost) > left {
             return;
         }
-        take(&pivot);
-        budget -= f64::from(pivot.cost);
-        slice = &mut slice[front + 1..];
+        left -= f64::from(item.cost);
+        take(item);
     }
 }
 

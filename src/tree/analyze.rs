@@ -530,21 +530,35 @@ impl Hierarchy {
         // Separate pieces (branches modelled apart): attach each by its open end nearest to
         // the rings found so far, nearest piece first, so branches of branches follow.
         let boundary = boundary_loops(&h.triangles, n);
+        let centers: Vec<Vec3> = boundary
+            .iter()
+            .map(|lp| mean(lp.iter().map(|&v| positions[v as usize])))
+            .collect();
+        // Each open end's nearest ring so far, updated only against rings added since.
+        let mut nearest = vec![(f32::INFINITY, NO_RING); boundary.len()];
+        let mut rings_seen = 0;
         loop {
-            let mut best: Option<(f32, Vec<u32>, u32)> = None;
-            for lp in &boundary {
+            let mut best: Option<usize> = None;
+            for (i, lp) in boundary.iter().enumerate() {
                 if lp.iter().any(|&v| h.vertex_ring[v as usize] != NO_RING) {
                     continue;
                 }
-                let center = mean(lp.iter().map(|&v| positions[v as usize]));
-                let (parent, distance) = h.nearest_ring(center);
-                if best.as_ref().is_none_or(|b| distance < b.0) {
-                    best = Some((distance, lp.clone(), parent));
+                for (r, ring) in h.rings.iter().enumerate().skip(rings_seen) {
+                    let d = ring.center.distance(centers[i]);
+                    if d < nearest[i].0 {
+                        nearest[i] = (d, r as u32);
+                    }
+                }
+                if best.is_none_or(|b| nearest[i].0 < nearest[b].0) {
+                    best = Some(i);
                 }
             }
-            let Some((distance, start, parent)) = best else {
+            rings_seen = h.rings.len();
+            let Some(i) = best else {
                 break;
             };
+            let (distance, parent) = nearest[i];
+            let start = boundary[i].clone();
             let ring = h.add_ring(start, parent, positions, &adjacency)?;
             // A branch may start anywhere along a segment next to its parent ring.
             let parent_ring = &h.rings[parent as usize];
@@ -574,17 +588,6 @@ impl Hierarchy {
             });
         }
         Ok(h)
-    }
-
-    fn nearest_ring(&self, p: Vec3) -> (u32, f32) {
-        let mut best = (NO_RING, f32::INFINITY);
-        for (i, r) in self.rings.iter().enumerate() {
-            let d = r.center.distance(p);
-            if d < best.1 {
-                best = (i as u32, d);
-            }
-        }
-        best
     }
 
     /// Breadth-first: the unvisited neighbours of each ring, split into connected

@@ -4,6 +4,8 @@
 
 mod analyze;
 mod asset;
+#[cfg(feature = "render")]
+mod mesh;
 mod model;
 mod species;
 
@@ -13,6 +15,8 @@ pub use analyze::{
 pub use asset::{
     BINARY_MAGIC, BINARY_VERSION, SpeciesLoader, TreeFileError, TreeModelLoader, TreePlugin,
 };
+#[cfg(feature = "render")]
+pub use mesh::{MeshConversionError, OwnedMeshData};
 pub use model::{
     BoundingSphere, Bounds, Leaf, LeafGroup, LinearRgb, NO_RING, Ring, Segments, TreeModel,
 };
