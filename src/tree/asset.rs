@@ -282,5 +282,7 @@ impl Plugin for TreePlugin {
         app.init_asset::<TreeModel>()
             .register_asset_loader(SpeciesLoader)
             .register_asset_loader(TreeModelLoader);
+        #[cfg(feature = "gltf")]
+        app.register_asset_loader(super::GltfTreeLoader);
     }
 }

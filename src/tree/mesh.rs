@@ -76,11 +76,11 @@ fn triangle_mesh(positions: &[Vec3], normals: &[Vec3], indices: &[u32]) -> Mesh 
     )
     .with_inserted_attribute(
         Mesh::ATTRIBUTE_POSITION,
-        positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        positions.iter().map(Vec3::to_array).collect::<Vec<_>>(),
     )
     .with_inserted_attribute(
         Mesh::ATTRIBUTE_NORMAL,
-        normals.iter().map(|n| n.to_array()).collect::<Vec<_>>(),
+        normals.iter().map(Vec3::to_array).collect::<Vec<_>>(),
     )
     .with_inserted_indices(Indices::U32(indices.to_vec()))
 }

@@ -4,6 +4,8 @@
 
 mod analyze;
 mod asset;
+#[cfg(feature = "gltf")]
+mod gltf;
 #[cfg(feature = "render")]
 mod mesh;
 mod model;
@@ -14,6 +16,10 @@ pub use analyze::{
 };
 pub use asset::{
     BINARY_MAGIC, BINARY_VERSION, SpeciesLoader, TreeFileError, TreeModelLoader, TreePlugin,
+};
+#[cfg(feature = "gltf")]
+pub use gltf::{
+    GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffer_uris, import_gltf,
 };
 #[cfg(feature = "render")]
 pub use mesh::{MeshConversionError, OwnedMeshData};

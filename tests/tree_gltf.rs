@@ -1,0 +1,208 @@
+//! Trees from glTF: a binary glTF with a trunk mesh and a leaves mesh, built here byte by
+//! byte, imported and analysed.
+#![cfg(feature = "gltf")]
+
+use std::collections::HashMap;
+
+use bevy::math::Vec3;
+use bevy_sherwood::tree::*;
+
+/// A trunk of three 4-vertex rings (two cylinders, base below ground) and one quad leaf,
+/// in a `.glb` whose trunk node is moved by `offset` and whose leaf material is named
+/// `leaf_material`.
+fn glb(offset: Vec3, leaf_material: &str) -> Vec<u8> {
+    let mut trunk_positions = Vec::new();
+    for (y, r) in [(-0.5_f32, 0.3_f32), (1.0, 0.2), (2.0, 0.1)] {
+        for j in 0..4 {
+            let a = core::f32::consts::TAU * j as f32 / 4.0;
+            trunk_positions.push([r * a.cos(), y, r * a.sin()]);
+        }
+    }
+    let mut trunk_indices: Vec<u16> = Vec::new();
+    for ring in 0..2_u16 {
+        for j in 0..4_u16 {
+            let (a0, a1) = (ring * 4 + j, ring * 4 + (j + 1) % 4);
+            let (b0, b1) = (a0 + 4, a1 + 4);
+            trunk_indices.extend([a0, a1, b1, a0, b1, b0]);
+        }
+    }
+    let leaf_positions = [
+        [0.5_f32, 2.5, 0.0],
+        [0.8, 2.5, 0.0],
+        [0.8, 2.8, 0.0],
+        [0.5, 2.8, 0.0],
+    ];
+    let leaf_indices: [u16; 6] = [0, 1, 2, 0, 2, 3];
+
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    let mut push = |bytes: &[u8], bin: &mut Vec<u8>| {
+        while !bin.len().is_multiple_of(4) {
+            bin.push(0);
+        }
+        views.push((bin.len(), bytes.len()));
+        bin.extend_from_slice(bytes);
+    };
+    let floats = |v: &[[f32; 3]]| {
+        v.iter()
+            .flatten()
+            .flat_map(|f| f.to_le_bytes())
+            .collect::<Vec<u8>>()
+    };
+    let shorts = |v: &[u16]| v.iter().flat_map(|i| i.to_le_bytes()).collect::<Vec<u8>>();
+    push(&floats(&trunk_positions), &mut bin);
+    push(&shorts(&trunk_indices), &mut bin);
+    push(&floats(&leaf_positions), &mut bin);
+    push(&shorts(&leaf_indices), &mut bin);
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let view_json: Vec<String> = views
+        .iter()
+        .map(|(o, l)| format!(r#"{{"buffer":0,"byteOffset":{o},"byteLength":{l}}}"#))
+        .collect();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+"nodes":[{{"name":"Tree","mesh":0,"translation":[{},{},{}]}},{{"name":"Crown","mesh":1}}],
+"meshes":[{{"name":"Bark","primitives":[{{"attributes":{{"POSITION":0}},"indices":1,"material":0}}]}},
+{{"name":"Crown","primitives":[{{"attributes":{{"POSITION":2}},"indices":3,"material":1}}]}}],
+"materials":[{{"name":"bark","pbrMetallicRoughness":{{"baseColorFactor":[0.3,0.2,0.1,1]}}}},
+{{"name":"{leaf_material}","pbrMetallicRoughness":{{"baseColorFactor":[0.1,0.5,0.1,1]}}}}],
+"accessors":[
+{{"bufferView":0,"componentType":5126,"count":12,"type":"VEC3","min":[-0.3,-0.5,-0.3],"max":[0.3,2.0,0.3]}},
+{{"bufferView":1,"componentType":5123,"count":48,"type":"SCALAR"}},
+{{"bufferView":2,"componentType":5126,"count":4,"type":"VEC3","min":[0.5,2.5,0.0],"max":[0.8,2.8,0.0]}},
+{{"bufferView":3,"componentType":5123,"count":6,"type":"SCALAR"}}],
+"bufferViews":[{}],"buffers":[{{"byteLength":{}}}]}}"#,
+        offset.x,
+        offset.y,
+        offset.z,
+        view_json.join(","),
+        bin.len()
+    );
+    let mut json = json.into_bytes();
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2_u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+#[test]
+fn trunk_and_leaves_are_told_apart_by_material_name() {
+    let analysis = import_gltf(
+        &glb(Vec3::ZERO, "Leaves"),
+        &GltfTreeSettings::default(),
+        &HashMap::new(),
+    )
+    .unwrap();
+    let m = &analysis.model;
+    assert_eq!(m.rings.len(), 3);
+    assert_eq!(m.segments.len(), 2);
+    assert_eq!(m.trunk_triangle_count(), 16);
+    assert_eq!(m.leaves.len(), 1);
+    assert_eq!(m.leaf_triangle_count(), 2);
+    assert_eq!(m.bark_color, [0.3, 0.2, 0.1]);
+    assert_eq!(m.leaf_color, [0.1, 0.5, 0.1]);
+}
+
+#[test]
+fn node_transforms_are_applied() {
+    let m = import_gltf(
+        &glb(Vec3::new(5.0, 0.0, 0.0), "Leaves"),
+        &GltfTreeSettings::default(),
+        &HashMap::new(),
+    )
+    .unwrap()
+    .model;
+    let root = m.roots().next().unwrap();
+    assert!((m.rings[root as usize].center - Vec3::new(5.0, -0.5, 0.0)).length() < 1e-5);
+}
+
+#[test]
+fn keywords_are_configurable_and_a_missing_trunk_is_an_error() {
+    // "Greens" is not a default leaf keyword: the quad is read as trunk (a flat branch
+    // attached to the nearest ring), so the tree has no leaves.
+    let bytes = glb(Vec3::ZERO, "Greens");
+    let as_trunk = import_gltf(&bytes, &GltfTreeSettings::default(), &HashMap::new()).unwrap();
+    assert_eq!(as_trunk.model.leaves.len(), 0);
+    assert_eq!(as_trunk.model.trunk_triangle_count(), 18);
+    let settings = GltfTreeSettings {
+        leaf_keywords: vec!["green".into()],
+    };
+    assert_eq!(
+        import_gltf(&bytes, &settings, &HashMap::new())
+            .unwrap()
+            .model
+            .leaves
+            .len(),
+        1
+    );
+    let everything = GltfTreeSettings {
+        leaf_keywords: vec!["".into(), "e".into()],
+    };
+    assert!(matches!(
+        import_gltf(&bytes, &everything, &HashMap::new()),
+        Err(GltfTreeError::NoTrunk { .. })
+    ));
+}
+
+#[test]
+fn broken_files_are_refused() {
+    assert!(matches!(
+        import_gltf(
+            b"not gltf at all",
+            &GltfTreeSettings::default(),
+            &HashMap::new()
+        ),
+        Err(GltfTreeError::Gltf(_))
+    ));
+    let mut truncated = glb(Vec3::ZERO, "Leaves");
+    truncated.truncate(truncated.len() - 40);
+    assert!(import_gltf(&truncated, &GltfTreeSettings::default(), &HashMap::new()).is_err());
+}
+
+#[test]
+fn tree_glb_files_load_through_the_asset_server() {
+    use bevy::asset::{AssetPlugin, LoadState};
+    use bevy::prelude::*;
+
+    let dir = std::env::temp_dir().join(format!("sherwood-gltf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("oak.tree.glb"), glb(Vec3::ZERO, "Leaves")).unwrap();
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            ..Default::default()
+        },
+        TreePlugin,
+    ));
+    let handle: Handle<TreeModel> = app.world().resource::<AssetServer>().load("oak.tree.glb");
+    for _ in 0..2000 {
+        app.update();
+        match app.world().resource::<AssetServer>().load_state(&handle) {
+            LoadState::Loaded => break,
+            LoadState::Failed(e) => panic!("{e}"),
+            _ => std::thread::sleep(std::time::Duration::from_millis(2)),
+        }
+    }
+    let model = app
+        .world()
+        .resource::<Assets<TreeModel>>()
+        .get(&handle)
+        .unwrap();
+    assert_eq!(model.rings.len(), 3);
+    let _ = std::fs::remove_dir_all(dir);
+}
