@@ -2,6 +2,8 @@
 #![warn(missing_docs)]
 
 pub mod budget;
+pub mod culling;
+pub mod ecosystem;
 pub mod tree;
 
 use bevy::app::{PluginGroup, PluginGroupBuilder};

@@ -1,0 +1,430 @@
+//! The thesis' box hierarchy (§4.3): a quadtree of boxes over the populated terrain, of
+//! user-chosen depth. Boxes fully inside the view mark every instance below them fully
+//! visible without further tests; only instances in partially visible leaves get
+//! per-part tests (whole tree box, trunk box, each leaf-group sphere).
+
+use core::ops::Range;
+
+use bevy::math::{Affine3A, Mat4, Vec3, Vec3A, Vec4};
+
+use crate::tree::{BoundingSphere, Bounds, TreeModel};
+
+/// Where a volume lies against the view.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Containment {
+    /// Entirely outside one of the planes.
+    Outside,
+    /// Crosses at least one plane.
+    Intersecting,
+    /// Inside every plane.
+    Inside,
+}
+
+/// The six planes of a view frustum, each `(normal, d)` with `normal · p + d ≥ 0` inside.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrustumPlanes(pub [Vec4; 6]);
+
+impl FrustumPlanes {
+    /// The planes of a clip-from-world (view-projection) matrix with wgpu's clip space
+    /// (x, y in [-w, w], z in [0, w]); works with Bevy's reverse-Z and infinite far plane.
+    pub fn from_clip_from_world(m: Mat4) -> Self {
+        let rows = [m.row(0), m.row(1), m.row(2), m.row(3)];
+        let planes = [
+            rows[3] + rows[0],
+            rows[3] - rows[0],
+            rows[3] + rows[1],
+            rows[3] - rows[1],
+            rows[2],
+            rows[3] - rows[2],
+        ];
+        Self(planes.map(|p| {
+            let length = p.truncate().length();
+            if length > 0.0 { p / length } else { p }
+        }))
+    }
+
+    /// Where an axis-aligned box lies. An empty box is outside.
+    pub fn classify_box(&self, bounds: &Bounds) -> Containment {
+        if bounds.is_empty() {
+            return Containment::Outside;
+        }
+        let center = Vec3A::from(bounds.center());
+        let half = Vec3A::from(bounds.half_extents());
+        let mut result = Containment::Inside;
+        for plane in &self.0 {
+            let normal = Vec3A::from(plane.truncate());
+            let distance = normal.dot(center) + plane.w;
+            let reach = normal.abs().dot(half);
+            if distance < -reach {
+                return Containment::Outside;
+            }
+            if distance < reach {
+                result = Containment::Intersecting;
+            }
+        }
+        result
+    }
+
+    /// Whether a sphere is at least partly inside.
+    pub fn intersects_sphere(&self, sphere: &BoundingSphere) -> bool {
+        let center = Vec3A::from(sphere.center);
+        self.0
+            .iter()
+            .all(|p| Vec3A::from(p.truncate()).dot(center) + p.w >= -sphere.radius)
+    }
+}
+
+/// The parts of a tree type that culling tests, in the tree's own space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CullShape {
+    /// Box around the whole tree.
+    pub bounds: Bounds,
+    /// Box around the trunk.
+    pub trunk: Bounds,
+    /// A sphere per leaf group.
+    pub groups: Vec<BoundingSphere>,
+}
+
+impl From<&TreeModel> for CullShape {
+    fn from(model: &TreeModel) -> Self {
+        Self {
+            bounds: model.bounds,
+            trunk: model.trunk_bounds,
+            groups: model.leaf_groups.iter().map(|g| g.bounds).collect(),
+        }
+    }
+}
+
+/// The box around `bounds` transformed by `transform`.
+pub fn transform_bounds(transform: &Affine3A, bounds: &Bounds) -> Bounds {
+    if bounds.is_empty() {
+        return Bounds::EMPTY;
+    }
+    let center = transform.transform_point3(bounds.center());
+    let half = Vec3A::from(bounds.half_extents());
+    let m = transform.matrix3;
+    let extent = Vec3::new(
+        m.row(0).abs().dot(half),
+        m.row(1).abs().dot(half),
+        m.row(2).abs().dot(half),
+    );
+    Bounds {
+        min: center - extent,
+        max: center + extent,
+    }
+}
+
+fn transform_sphere(transform: &Affine3A, sphere: &BoundingSphere) -> BoundingSphere {
+    let m = transform.matrix3;
+    let scale = m
+        .x_axis
+        .length()
+        .max(m.y_axis.length())
+        .max(m.z_axis.length());
+    BoundingSphere {
+        center: transform.transform_point3(sphere.center),
+        radius: sphere.radius * scale,
+    }
+}
+
+/// One instance to cull: its transform and which [`CullShape`] it has.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CullInstance {
+    /// Local → world.
+    pub transform: Affine3A,
+    /// Index into the shapes slice.
+    pub shape: u32,
+}
+
+/// Visibility of one instance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum InstanceVisibility {
+    /// Not drawn.
+    #[default]
+    Invisible,
+    /// Entirely inside the view: every part is drawn without further tests.
+    Full,
+    /// Partly inside: draw the trunk if `trunk`, and the leaf groups whose bits are set in
+    /// [`CullResult::group_bits`] from word `first_word` on.
+    Partial {
+        /// Whether the trunk box is (partly) visible.
+        trunk: bool,
+        /// First 64-bit word of this instance's group bits.
+        first_word: u32,
+    },
+}
+
+/// One frame's culling answer.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CullResult {
+    /// Per instance, in instance order.
+    pub visibility: Vec<InstanceVisibility>,
+    /// Group visibility bits of partially visible instances (bit `g` of the words
+    /// starting at `first_word`).
+    pub group_bits: Vec<u64>,
+}
+
+impl CullResult {
+    /// Whether leaf group `group` of instance `instance` is visible.
+    pub fn group_visible(&self, instance: usize, group: usize) -> bool {
+        match self.visibility[instance] {
+            InstanceVisibility::Invisible => false,
+            InstanceVisibility::Full => true,
+            InstanceVisibility::Partial { first_word, .. } => {
+                self.group_bits[first_word as usize + group / 64] & (1 << (group % 64)) != 0
+            }
+        }
+    }
+
+    /// Whether the trunk of `instance` is visible.
+    pub fn trunk_visible(&self, instance: usize) -> bool {
+        match self.visibility[instance] {
+            InstanceVisibility::Invisible => false,
+            InstanceVisibility::Full => true,
+            InstanceVisibility::Partial { trunk, .. } => trunk,
+        }
+    }
+
+    fn clear(&mut self, instances: usize) {
+        self.visibility.clear();
+        self.visibility
+            .resize(instances, InstanceVisibility::Invisible);
+        self.group_bits.clear();
+    }
+}
+
+/// Per-part test of one instance (what brute force does for every instance, and the
+/// hierarchy only in partially visible leaves).
+fn test_instance(
+    planes: &FrustumPlanes,
+    instance: &CullInstance,
+    world_bounds: &Bounds,
+    shapes: &[CullShape],
+    result: &mut CullResult,
+) -> InstanceVisibility {
+    match planes.classify_box(world_bounds) {
+        Containment::Outside => InstanceVisibility::Invisible,
+        Containment::Inside => InstanceVisibility::Full,
+        Containment::Intersecting => {
+            let shape = &shapes[instance.shape as usize];
+            let trunk_box = transform_bounds(&instance.transform, &shape.trunk);
+            let trunk = planes.classify_box(&trunk_box) != Containment::Outside;
+            let first_word = result.group_bits.len();
+            result
+                .group_bits
+                .resize(first_word + shape.groups.len().div_ceil(64), 0);
+            let mut any = trunk;
+            for (g, sphere) in shape.groups.iter().enumerate() {
+                if planes.intersects_sphere(&transform_sphere(&instance.transform, sphere)) {
+                    result.group_bits[first_word + g / 64] |= 1 << (g % 64);
+                    any = true;
+                }
+            }
+            if any {
+                InstanceVisibility::Partial {
+                    trunk,
+                    first_word: first_word as u32,
+                }
+            } else {
+                result.group_bits.truncate(first_word);
+                InstanceVisibility::Invisible
+            }
+        }
+    }
+}
+
+/// The reference: every instance tested on its own.
+pub fn cull_brute_force(
+    planes: &FrustumPlanes,
+    instances: &[CullInstance],
+    shapes: &[CullShape],
+    result: &mut CullResult,
+) {
+    result.clear(instances.len());
+    for (i, instance) in instances.iter().enumerate() {
+        let bounds = transform_bounds(&instance.transform, &shapes[instance.shape as usize].bounds);
+        let visibility = test_instance(planes, instance, &bounds, shapes, result);
+        result.visibility[i] = visibility;
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Node {
+    bounds: Bounds,
+    /// Instances below this node: a range of `order`.
+    instances: (u32, u32),
+}
+
+/// How one node of the hierarchy was seen last frame, for the debug view.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NodeVisibility {
+    /// Not tested (empty, or below a node already decided).
+    Untested,
+    /// Outside the view.
+    Outside,
+    /// Partly inside.
+    Partial,
+    /// Entirely inside.
+    Full,
+}
+
+/// A quadtree of boxes over the populated area.
+#[derive(Clone, Debug)]
+pub struct BoxHierarchy {
+    depth: u32,
+    /// Level-order complete quadtree: level `l` starts at `(4^l − 1) / 3`.
+    nodes: Vec<Node>,
+    /// Instance indices grouped by leaf.
+    order: Vec<u32>,
+    /// World box of every instance.
+    instance_bounds: Vec<Bounds>,
+    node_visibility: Vec<NodeVisibility>,
+}
+
+fn level_start(level: u32) -> usize {
+    ((1_usize << (2 * level)) - 1) / 3
+}
+
+impl BoxHierarchy {
+    /// Builds a hierarchy of `depth` levels below the root (4^depth leaves, each owning an
+    /// equal cell of `area`'s XZ rectangle) over `instances`. Instances outside the area
+    /// go to the nearest border cell. A depth above 10 is treated as 10.
+    pub fn build(
+        depth: u32,
+        area: &Bounds,
+        instances: &[CullInstance],
+        shapes: &[CullShape],
+    ) -> Self {
+        let depth = depth.min(10);
+        let side = 1_usize << depth;
+        let instance_bounds: Vec<Bounds> = instances
+            .iter()
+            .map(|i| transform_bounds(&i.transform, &shapes[i.shape as usize].bounds))
+            .collect();
+        let area_min = area.min;
+        let area_size = (area.max - area.min).max(Vec3::splat(f32::EPSILON));
+        let cell_of = |p: Vec3| {
+            let f = ((p - area_min) / area_size * side as f32).floor();
+            let x = (f.x.max(0.0) as usize).min(side - 1);
+            let z = (f.z.max(0.0) as usize).min(side - 1);
+            // Morton order, so every subtree's leaves are contiguous.
+            let mut code = 0;
+            for bit in 0..depth {
+                code |= ((x >> bit) & 1) << (2 * bit);
+                code |= ((z >> bit) & 1) << (2 * bit + 1);
+            }
+            code
+        };
+        let leaves = side * side;
+        let leaf_of: Vec<usize> = instances
+            .iter()
+            .map(|i| cell_of(i.transform.translation.into()))
+            .collect();
+        let mut order: Vec<u32> = (0..instances.len() as u32).collect();
+        order.sort_by_key(|&i| leaf_of[i as usize]);
+        let mut nodes = vec![
+            Node {
+                bounds: Bounds::EMPTY,
+                instances: (0, 0),
+            };
+            level_start(depth + 1)
+        ];
+        let first_leaf = level_start(depth);
+        let mut cursor = 0;
+        for leaf in 0..leaves {
+            let start = cursor;
+            while cursor < order.len() && leaf_of[order[cursor] as usize] == leaf {
+                let b = instance_bounds[order[cursor] as usize];
+                nodes[first_leaf + leaf].bounds = nodes[first_leaf + leaf].bounds.union(b);
+                cursor += 1;
+            }
+            nodes[first_leaf + leaf].instances = (start as u32, cursor as u32);
+        }
+        for level in (0..depth).rev() {
+            let start = level_start(level);
+            let child_start = level_start(level + 1);
+            for i in 0..(1 << (2 * level)) {
+                let children = &nodes[child_start + 4 * i..child_start + 4 * i + 4];
+                let bounds = children
+                    .iter()
+                    .fold(Bounds::EMPTY, |b, c| b.union(c.bounds));
+                let instances = (children[0].instances.0, children[3].instances.1);
+                nodes[start + i] = Node { bounds, instances };
+            }
+        }
+        let node_visibility = vec![NodeVisibility::Untested; nodes.len()];
+        Self {
+            depth,
+            nodes,
+            order,
+            instance_bounds,
+            node_visibility,
+        }
+    }
+
+    /// Levels below the root.
+    pub fn depth(&self) -> u32 {
+        self.depth
+    }
+
+    /// Every node's box and how it was seen by the last [`cull`](Self::cull), skipping
+    /// empty (invalid) nodes — for the debug view.
+    pub fn nodes(&self) -> impl Iterator<Item = (Bounds, NodeVisibility)> + '_ {
+        self.nodes
+            .iter()
+            .zip(&self.node_visibility)
+            .filter(|(n, _)| !n.bounds.is_empty())
+            .map(|(n, v)| (n.bounds, *v))
+    }
+
+    /// Culls `instances` (the same slice, in the same order, as at build time).
+    pub fn cull(
+        &mut self,
+        planes: &FrustumPlanes,
+        instances: &[CullInstance],
+        shapes: &[CullShape],
+        result: &mut CullResult,
+    ) {
+        result.clear(instances.len());
+        self.node_visibility.fill(NodeVisibility::Untested);
+        let mut stack = vec![(0_usize, 0_u32)];
+        while let Some((node, level)) = stack.pop() {
+            let n = self.nodes[node];
+            if n.bounds.is_empty() {
+                continue; // invalid: no instance below
+            }
+            match planes.classify_box(&n.bounds) {
+                Containment::Outside => self.node_visibility[node] = NodeVisibility::Outside,
+                Containment::Inside => {
+                    self.node_visibility[node] = NodeVisibility::Full;
+                    for &i in &self.order[n.instances.0 as usize..n.instances.1 as usize] {
+                        result.visibility[i as usize] = InstanceVisibility::Full;
+                    }
+                }
+                Containment::Intersecting => {
+                    self.node_visibility[node] = NodeVisibility::Partial;
+                    if level == self.depth {
+                        for &i in &self.order[n.instances.0 as usize..n.instances.1 as usize] {
+                            let i = i as usize;
+                            let bounds = self.instance_bounds[i];
+                            let visibility =
+                                test_instance(planes, &instances[i], &bounds, shapes, result);
+                            result.visibility[i] = visibility;
+                        }
+                    } else {
+                        let first_child = level_start(level + 1) + 4 * (node - level_start(level));
+                        stack.extend((first_child..first_child + 4).map(|c| (c, level + 1)));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Instances grouped by leaf, as a range of instance indices per leaf (for reports).
+    pub fn leaf_ranges(&self) -> impl Iterator<Item = Range<u32>> + '_ {
+        let first_leaf = level_start(self.depth);
+        self.nodes[first_leaf..]
+            .iter()
+            .map(|n| n.instances.0..n.instances.1)
+    }
+}

@@ -1,0 +1,9 @@
+//! Visibility: which instances, trunks and leaf groups the camera sees, through the
+//! thesis' box hierarchy ([`BoxHierarchy`]).
+
+mod hierarchy;
+
+pub use hierarchy::{
+    BoxHierarchy, Containment, CullInstance, CullResult, CullShape, FrustumPlanes,
+    InstanceVisibility, NodeVisibility, cull_brute_force, transform_bounds,
+};

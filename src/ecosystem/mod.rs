@@ -1,0 +1,14 @@
+//! Ecosystems (thesis chapter 3): RON descriptions of materials, species, terrain and
+//! placement rules ([`EcosystemDesc`]), the NURBS-and-faults [`Terrain`], and the
+//! jittered-grid placement.
+
+mod desc;
+mod placement;
+mod terrain;
+
+pub use desc::{
+    EcosystemDesc, EcosystemError, EcosystemLayout, InstanceDesc, InstanceLayout, MaterialDesc,
+    SpeciesEntry,
+};
+pub use placement::{Angles, Placement, Tilt, tilt_from_normal};
+pub use terrain::{FaultsDesc, Terrain, TerrainDesc, TerrainError};

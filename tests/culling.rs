@@ -1,0 +1,164 @@
+//! Box-hierarchy culling against brute force on random views.
+
+use bevy::math::{Affine3A, Mat4, Quat, Vec3};
+use bevy_sherwood::culling::*;
+use bevy_sherwood::tree::{BoundingSphere, Bounds};
+use proptest::prelude::*;
+
+fn shapes() -> Vec<CullShape> {
+    let tree = |h: f32, groups: usize| CullShape {
+        bounds: Bounds {
+            min: Vec3::new(-2.0, -0.2, -2.0),
+            max: Vec3::new(2.0, h, 2.0),
+        },
+        trunk: Bounds {
+            min: Vec3::new(-0.3, -0.2, -0.3),
+            max: Vec3::new(0.3, h * 0.8, 0.3),
+        },
+        groups: (0..groups)
+            .map(|g| {
+                let a = g as f32 * 2.4;
+                BoundingSphere {
+                    center: Vec3::new(1.4 * a.cos(), h * 0.7, 1.4 * a.sin()),
+                    radius: 0.5,
+                }
+            })
+            .collect(),
+    };
+    vec![tree(6.0, 12), tree(9.0, 70), tree(4.0, 3)]
+}
+
+/// A jittered grid of `n` instances over a `size` × `size` square.
+fn forest(n: usize, size: f32, seed: u64) -> Vec<CullInstance> {
+    let mut s = seed;
+    let mut rnd = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let side = (n as f32).sqrt().ceil() as usize;
+    (0..n)
+        .map(|i| {
+            let (x, z) = ((i % side) as f32, (i / side) as f32);
+            let p = Vec3::new(
+                (x + rnd()) / side as f32 * size,
+                rnd() * 3.0,
+                (z + rnd()) / side as f32 * size,
+            );
+            let transform = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(0.7 + 0.6 * rnd()),
+                Quat::from_rotation_y(rnd() * 6.28) * Quat::from_rotation_x(0.1 * (rnd() - 0.5)),
+                p,
+            );
+            CullInstance {
+                transform,
+                shape: (i % 3) as u32,
+            }
+        })
+        .collect()
+}
+
+fn view(eye: Vec3, target: Vec3, fov: f32, far: Option<f32>) -> FrustumPlanes {
+    let view = Mat4::look_at_rh(eye, target, Vec3::Y);
+    let projection = match far {
+        // Bevy's default: reverse-Z, infinite far plane.
+        None => Mat4::perspective_infinite_reverse_rh(fov, 16.0 / 9.0, 0.1),
+        Some(far) => Mat4::perspective_rh(fov, 16.0 / 9.0, 0.1, far),
+    };
+    FrustumPlanes::from_clip_from_world(projection * view)
+}
+
+fn area(size: f32) -> Bounds {
+    Bounds {
+        min: Vec3::ZERO,
+        max: Vec3::new(size, 10.0, size),
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn hierarchy_equals_brute_force(
+        seed in 0_u64..1000,
+        depth in 0_u32..6,
+        eye in (0_i32..400, 1_i32..60, 0_i32..400),
+        target in (0_i32..400, 0_i32..10, 0_i32..400),
+        fov in 20_i32..100,
+        far in prop::option::of(20_i32..300),
+    ) {
+        let shapes = shapes();
+        let instances = forest(900, 400.0, seed);
+        let eye = Vec3::new(eye.0 as f32, eye.1 as f32, eye.2 as f32);
+        let target = Vec3::new(target.0 as f32 + 0.5, target.1 as f32, target.2 as f32 + 0.5);
+        let planes = view(eye, target, (fov as f32).to_radians(), far.map(|f| f as f32));
+        let mut hierarchy = BoxHierarchy::build(depth, &area(400.0), &instances, &shapes);
+        let (mut fast, mut slow) = (CullResult::default(), CullResult::default());
+        hierarchy.cull(&planes, &instances, &shapes, &mut fast);
+        cull_brute_force(&planes, &instances, &shapes, &mut slow);
+        for i in 0..instances.len() {
+            let shape = &shapes[instances[i].shape as usize];
+            prop_assert_eq!(fast.trunk_visible(i), slow.trunk_visible(i), "instance {}", i);
+            for g in 0..shape.groups.len() {
+                prop_assert_eq!(fast.group_visible(i, g), slow.group_visible(i, g));
+            }
+            // Fully visible means the whole box is inside the view.
+            if fast.visibility[i] == InstanceVisibility::Full {
+                let b = transform_bounds(&instances[i].transform, &shape.bounds);
+                prop_assert_eq!(planes.classify_box(&b), Containment::Inside);
+            }
+        }
+    }
+}
+
+#[test]
+fn looking_away_sees_nothing_and_from_above_sees_everything() {
+    let shapes = shapes();
+    let instances = forest(400, 100.0, 7);
+    let mut hierarchy = BoxHierarchy::build(3, &area(100.0), &instances, &shapes);
+    let mut result = CullResult::default();
+    let away = view(
+        Vec3::new(-50.0, 5.0, -50.0),
+        Vec3::new(-100.0, 5.0, -100.0),
+        1.0,
+        None,
+    );
+    hierarchy.cull(&away, &instances, &shapes, &mut result);
+    assert!(
+        result
+            .visibility
+            .iter()
+            .all(|v| *v == InstanceVisibility::Invisible)
+    );
+    let above = view(
+        Vec3::new(50.0, 400.0, 50.01),
+        Vec3::new(50.0, 0.0, 50.0),
+        1.2,
+        None,
+    );
+    hierarchy.cull(&above, &instances, &shapes, &mut result);
+    assert!(
+        result
+            .visibility
+            .iter()
+            .all(|v| *v == InstanceVisibility::Full)
+    );
+    assert!(hierarchy.nodes().any(|(_, v)| v == NodeVisibility::Full));
+}
+
+#[test]
+fn empty_cells_are_invalid_and_skipped() {
+    let shapes = shapes();
+    // All instances in one corner: most cells are empty.
+    let instances: Vec<CullInstance> = forest(50, 10.0, 3);
+    let hierarchy = BoxHierarchy::build(4, &area(400.0), &instances, &shapes);
+    let valid = hierarchy.nodes().count();
+    assert!(
+        valid < 20,
+        "{valid} valid nodes out of {}",
+        (4usize.pow(5) - 1) / 3
+    );
+    let total: u32 = hierarchy.leaf_ranges().map(|r| r.end - r.start).sum();
+    assert_eq!(total, 50);
+}
