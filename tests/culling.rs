@@ -48,7 +48,8 @@ fn forest(n: usize, size: f32, seed: u64) -> Vec<CullInstance> {
             );
             let transform = Affine3A::from_scale_rotation_translation(
                 Vec3::splat(0.7 + 0.6 * rnd()),
-                Quat::from_rotation_y(rnd() * 6.28) * Quat::from_rotation_x(0.1 * (rnd() - 0.5)),
+                Quat::from_rotation_y(rnd() * core::f32::consts::TAU)
+                    * Quat::from_rotation_x(0.1 * (rnd() - 0.5)),
                 p,
             );
             CullInstance {
