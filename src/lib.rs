@@ -16,6 +16,8 @@ pub mod prelude {
     pub use crate::budget::{
         BudgetProblem, BudgetStats, BudgetStrategy, FrameTimeModel, Level, RobinHood, ValueFunction,
     };
+    pub use crate::culling::{CullView, CullingDebug, CullingPlugin, ForestCulling};
+    pub use crate::ecosystem::{Ecosystem, EcosystemPlugin, Forest, TreeInstance};
     pub use crate::tree::{SpeciesDesc, TreeModel, TreePlugin};
     pub use crate::{SherwoodCorePlugin, SherwoodPlugins, SherwoodSystems};
 }
@@ -82,5 +84,7 @@ impl PluginGroup for SherwoodPlugins {
         PluginGroupBuilder::start::<Self>()
             .add(SherwoodCorePlugin)
             .add(tree::TreePlugin)
+            .add(ecosystem::EcosystemPlugin)
+            .add(culling::CullingPlugin)
     }
 }

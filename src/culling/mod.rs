@@ -2,8 +2,12 @@
 //! thesis' box hierarchy ([`BoxHierarchy`]).
 
 mod hierarchy;
+mod plugin;
 
 pub use hierarchy::{
     BoxHierarchy, Containment, CullInstance, CullResult, CullShape, FrustumPlanes,
     InstanceVisibility, NodeVisibility, cull_brute_force, transform_bounds,
 };
+#[cfg(feature = "render")]
+pub use plugin::FullyVisibleBoxes;
+pub use plugin::{CullView, CullingDebug, CullingPlugin, ForestCulling};

@@ -4,6 +4,7 @@
 
 mod desc;
 mod placement;
+mod plugin;
 mod terrain;
 
 pub use desc::{
@@ -11,4 +12,8 @@ pub use desc::{
     SpeciesEntry,
 };
 pub use placement::{Angles, Placement, Tilt, tilt_from_normal};
+pub use plugin::{
+    Ecosystem, EcosystemFileError, EcosystemLoader, EcosystemPlugin, Forest, ForestState,
+    ForestTerrain, TreeInstance,
+};
 pub use terrain::{FaultsDesc, Terrain, TerrainDesc, TerrainError};

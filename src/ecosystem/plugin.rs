@@ -1,0 +1,240 @@
+//! Ecosystems in the ECS: the `*.ecosystem.ron` asset, and forests spawned (and
+//! respawned when the file changes) from it.
+
+use bevy::asset::io::Reader;
+use bevy::asset::{AssetLoader, LoadContext};
+use bevy::prelude::*;
+
+use super::desc::{EcosystemDesc, EcosystemError};
+use super::terrain::Terrain;
+use crate::tree::TreeModel;
+
+/// A loaded, validated ecosystem description.
+#[derive(Asset, TypePath, Clone, Debug, Deref)]
+pub struct Ecosystem(pub EcosystemDesc);
+
+/// Why an ecosystem file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum EcosystemFileError {
+    /// Reading failed.
+    #[error("could not read the file: {0}")]
+    Io(#[from] std::io::Error),
+    /// Not UTF-8.
+    #[error("the file is not UTF-8 text: {0}")]
+    Utf8(#[from] core::str::Utf8Error),
+    /// Malformed or out of range (the message names line, column and field).
+    #[error("{0}")]
+    Ecosystem(#[from] EcosystemError),
+}
+
+/// Loads `*.ecosystem.ron` files.
+#[derive(Default, TypePath)]
+pub struct EcosystemLoader;
+
+impl AssetLoader for EcosystemLoader {
+    type Asset = Ecosystem;
+    type Settings = ();
+    type Error = EcosystemFileError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        _load_context: &mut LoadContext<'_>,
+    ) -> Result<Ecosystem, EcosystemFileError> {
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).await?;
+        Ok(Ecosystem(EcosystemDesc::from_ron_str(
+            core::str::from_utf8(&bytes)?,
+        )?))
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["ecosystem.ron"]
+    }
+}
+
+/// Spawns a forest from an ecosystem file, and respawns it when the file changes:
+/// `commands.spawn(Forest(asset_server.load("forests/default.ecosystem.ron")))`.
+///
+/// A malformed edit fails to load, is logged with its line, column and field, and leaves
+/// the previous forest standing.
+#[derive(Component, Clone, Debug)]
+#[require(ForestState)]
+pub struct Forest(pub Handle<Ecosystem>);
+
+/// What a [`Forest`] has spawned.
+#[derive(Component, Clone, Debug, Default)]
+pub struct ForestState {
+    /// The tree model of every species, in the ecosystem's species order.
+    pub species: Vec<Handle<TreeModel>>,
+    /// The instance entities, in instance order.
+    pub instances: Vec<Entity>,
+    /// The terrain entity.
+    pub terrain: Option<Entity>,
+    /// Levels of the culling hierarchy asked for by the ecosystem.
+    pub culling_depth: u32,
+    /// Incremented at every (re)spawn.
+    pub generation: u32,
+    spawned: bool,
+}
+
+/// One tree of a forest.
+#[derive(Component, Clone, Debug)]
+pub struct TreeInstance {
+    /// The [`Forest`] entity it belongs to.
+    pub forest: Entity,
+    /// Index of its species in the ecosystem.
+    pub species: usize,
+    /// Its tree type.
+    pub model: Handle<TreeModel>,
+    /// Its index among the forest's instances.
+    pub index: u32,
+    /// Uniform scale (also in its `Transform`).
+    pub scale: f32,
+    /// Trunk material, an index into the ecosystem's materials (in name order).
+    pub trunk_material: usize,
+    /// Leaf material, an index into the ecosystem's materials (in name order).
+    pub leaf_material: usize,
+    /// Which wind setup moves it.
+    pub motion: u32,
+}
+
+/// The terrain of a forest: query heights and normals with [`Terrain::height_at`] and
+/// [`Terrain::normal_at`].
+#[derive(Component, Clone, Debug)]
+pub struct ForestTerrain {
+    /// The [`Forest`] entity it belongs to.
+    pub forest: Entity,
+    /// The sampled terrain.
+    pub terrain: Terrain,
+}
+
+/// Registers ecosystem assets and spawns [`Forest`]s.
+#[derive(Default)]
+pub struct EcosystemPlugin;
+
+impl Plugin for EcosystemPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<Ecosystem>()
+            .register_asset_loader(EcosystemLoader)
+            .add_systems(Update, spawn_forests);
+    }
+}
+
+fn spawn_forests(
+    mut commands: Commands,
+    mut events: MessageReader<AssetEvent<Ecosystem>>,
+    mut forests: Query<(Entity, &Forest, &mut ForestState)>,
+    ecosystems: Res<Assets<Ecosystem>>,
+    server: Res<AssetServer>,
+    // Absent in headless apps: the terrain then gets no mesh.
+    #[cfg(feature = "render")] mut meshes: Option<ResMut<Assets<Mesh>>>,
+    #[cfg(feature = "render")] mut materials: Option<ResMut<Assets<StandardMaterial>>>,
+) {
+    let changed: Vec<AssetId<Ecosystem>> = events
+        .read()
+        .filter_map(|e| match e {
+            AssetEvent::Modified { id } => Some(*id),
+            _ => None,
+        })
+        .collect();
+    for (entity, forest, mut state) in &mut forests {
+        let id = forest.0.id();
+        if state.spawned && !changed.contains(&id) {
+            continue;
+        }
+        let Some(ecosystem) = ecosystems.get(id) else {
+            continue;
+        };
+        let layout = match ecosystem.layout() {
+            Ok(layout) => layout,
+            Err(e) => {
+                error!(
+                    "ecosystem {:?}: {e}; the previous forest stays",
+                    forest.0.path()
+                );
+                state.spawned = true;
+                continue;
+            }
+        };
+        let terrain = state.terrain.take();
+        for old in state.instances.drain(..).chain(terrain) {
+            commands.entity(old).despawn();
+        }
+        state.species = ecosystem
+            .species
+            .iter()
+            .map(|s| server.load::<TreeModel>(&s.tree))
+            .collect();
+        state.culling_depth = ecosystem.culling_depth;
+        state.generation += 1;
+        state.spawned = true;
+        for (index, instance) in layout.instances.iter().enumerate() {
+            let (scale, rotation, translation) = instance.transform.to_scale_rotation_translation();
+            let id = commands
+                .spawn((
+                    TreeInstance {
+                        forest: entity,
+                        species: instance.species,
+                        model: state.species[instance.species].clone(),
+                        index: index as u32,
+                        scale: instance.scale,
+                        trunk_material: instance.trunk_material,
+                        leaf_material: instance.leaf_material,
+                        motion: instance.motion,
+                    },
+                    Transform {
+                        translation,
+                        rotation,
+                        scale,
+                    },
+                ))
+                .id();
+            state.instances.push(id);
+        }
+        let mut terrain = commands.spawn((
+            ForestTerrain {
+                forest: entity,
+                terrain: layout.terrain.clone(),
+            },
+            Transform::default(),
+        ));
+        #[cfg(feature = "render")]
+        if let (Some(meshes), Some(materials)) = (meshes.as_mut(), materials.as_mut()) {
+            let t = &layout.terrain;
+            let mesh = Mesh::new(
+                bevy::mesh::PrimitiveTopology::TriangleList,
+                bevy::asset::RenderAssetUsages::default(),
+            )
+            .with_inserted_attribute(
+                Mesh::ATTRIBUTE_POSITION,
+                t.mesh_positions()
+                    .iter()
+                    .map(Vec3::to_array)
+                    .collect::<Vec<_>>(),
+            )
+            .with_inserted_attribute(
+                Mesh::ATTRIBUTE_NORMAL,
+                t.mesh_normals()
+                    .iter()
+                    .map(Vec3::to_array)
+                    .collect::<Vec<_>>(),
+            )
+            .with_inserted_indices(bevy::mesh::Indices::U32(t.mesh_indices()));
+            let ground = ecosystem
+                .materials
+                .get(&ecosystem.terrain_material)
+                .map_or([0.3, 0.4, 0.2], |m| m.diffuse);
+            terrain.insert((
+                Mesh3d(meshes.add(mesh)),
+                MeshMaterial3d(materials.add(StandardMaterial {
+                    base_color: Color::linear_rgb(ground[0], ground[1], ground[2]),
+                    perceptual_roughness: 0.95,
+                    ..default()
+                })),
+            ));
+        }
+        state.terrain = Some(terrain.id());
+    }
+}

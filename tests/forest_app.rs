@@ -1,0 +1,106 @@
+//! A headless app: a forest spawned from the default ecosystem file, culled against a
+//! view, respawned on change.
+
+use bevy::asset::AssetPlugin;
+use bevy::prelude::*;
+use bevy_sherwood::culling::{CullResult, FrustumPlanes, cull_brute_force};
+use bevy_sherwood::ecosystem::{ForestState, ForestTerrain};
+use bevy_sherwood::prelude::*;
+
+fn app() -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
+            ..Default::default()
+        },
+        TransformPlugin,
+        SherwoodPlugins,
+    ));
+    app
+}
+
+/// Updates until the culling hierarchy exists (bounded).
+fn until_culled(app: &mut App) {
+    for _ in 0..3000 {
+        app.update();
+        if app.world().resource::<ForestCulling>().hierarchy.is_some() {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("the forest never finished loading");
+}
+
+fn count<C: Component>(app: &mut App) -> usize {
+    app.world_mut().query::<&C>().iter(app.world()).count()
+}
+
+#[test]
+fn forest_spawns_culls_and_respawns() {
+    let mut app = app();
+    let handle = app
+        .world()
+        .resource::<AssetServer>()
+        .load("forests/default.ecosystem.ron");
+    let forest = app.world_mut().spawn(Forest(handle.clone())).id();
+    let view = Mat4::perspective_infinite_reverse_rh(1.0, 16.0 / 9.0, 0.1)
+        * Mat4::look_at_rh(
+            Vec3::new(100.0, 10.0, 100.0),
+            Vec3::new(200.0, 5.0, 100.0),
+            Vec3::Y,
+        );
+    let planes = FrustumPlanes::from_clip_from_world(view);
+    app.world_mut().spawn(CullView(planes));
+    until_culled(&mut app);
+    app.update();
+
+    assert_eq!(count::<TreeInstance>(&mut app), 600);
+    assert_eq!(count::<ForestTerrain>(&mut app), 1);
+    let culling = app.world().resource::<ForestCulling>();
+    assert_eq!(culling.result.visibility.len(), 600);
+    let mut reference = CullResult::default();
+    cull_brute_force(&planes, &culling.instances, &culling.shapes, &mut reference);
+    let visible = |r: &CullResult| (0..600).filter(|&i| r.trunk_visible(i)).count();
+    assert_eq!(visible(&culling.result), visible(&reference));
+    assert!(
+        visible(&reference) > 50 && visible(&reference) < 600,
+        "{}",
+        visible(&reference)
+    );
+
+    // An edit respawns the forest with nothing stale left behind.
+    let generation = app.world().get::<ForestState>(forest).unwrap().generation;
+    app.world_mut()
+        .resource_mut::<Assets<Ecosystem>>()
+        .get_mut(&handle)
+        .unwrap()
+        .0
+        .species[0]
+        .count = 100;
+    until_culled(&mut app);
+    for _ in 0..3 {
+        app.update();
+    }
+    assert_eq!(count::<TreeInstance>(&mut app), 500);
+    assert_eq!(count::<ForestTerrain>(&mut app), 1);
+    assert_eq!(
+        app.world().get::<ForestState>(forest).unwrap().generation,
+        generation + 1
+    );
+    assert_eq!(app.world().resource::<ForestCulling>().entities.len(), 500);
+
+    // An edit that cannot be laid out leaves the previous forest standing.
+    app.world_mut()
+        .resource_mut::<Assets<Ecosystem>>()
+        .get_mut(&handle)
+        .unwrap()
+        .0
+        .species[1]
+        .scale = (2.0, 1.0);
+    for _ in 0..3 {
+        app.update();
+    }
+    assert_eq!(count::<TreeInstance>(&mut app), 500);
+}
