@@ -198,10 +198,10 @@ fn draw_culling_boxes(
         let aabb = Aabb3d::new(bounds.center(), bounds.half_extents());
         match visibility {
             NodeVisibility::Full => {
-                dashed.aabb_3d(aabb, Transform::IDENTITY, Color::srgb(0.2, 0.9, 0.3))
+                dashed.aabb_3d(aabb, Transform::IDENTITY, Color::srgb(0.2, 0.9, 0.3));
             }
             NodeVisibility::Partial => {
-                solid.aabb_3d(aabb, Transform::IDENTITY, Color::srgb(0.95, 0.8, 0.2))
+                solid.aabb_3d(aabb, Transform::IDENTITY, Color::srgb(0.95, 0.8, 0.2));
             }
             _ => {}
         }
