@@ -6,6 +6,8 @@ pub mod culling;
 pub mod ecosystem;
 pub mod tree;
 
+mod rng;
+
 use bevy::app::{PluginGroup, PluginGroupBuilder};
 use bevy::ecs::schedule::SystemSet;
 use bevy::prelude::*;

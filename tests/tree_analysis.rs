@@ -482,6 +482,7 @@ pub fn check_invariants(m: &TreeModel) {
         next = g.leaves.end;
         assert!(m.rings[g.ring as usize].is_terminal());
         for leaf in m.leaves_of(gi) {
+            assert_eq!(leaf.group, gi as u32);
             for t in leaf.triangles.clone() {
                 for k in 0..3 {
                     let v = m.leaf_indices[t as usize * 3 + k] as usize;

@@ -6,8 +6,9 @@ use std::collections::BTreeMap;
 use bevy::math::{Affine3A, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::placement::{Angles, Rng, Tilt, place, tilt_from_normal};
+use super::placement::{Angles, Tilt, place, tilt_from_normal};
 use super::terrain::{Terrain, TerrainDesc, TerrainError};
+use crate::rng::SplitMix64;
 
 /// A Blinn-Phong material (thesis §3.1); colours are linear RGB.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -301,43 +302,44 @@ impl EcosystemDesc {
     pub fn layout(&self) -> Result<EcosystemLayout, EcosystemError> {
         self.validate()?;
         let terrain = self.terrain.build()?;
-        let mut rng = Rng::new(self.seed);
+        let mut rng = SplitMix64::new(self.seed ^ 0x00D1_CE5E_ED00);
         let counts: Vec<usize> = self.species.iter().map(|s| s.count as usize).collect();
         let placed = place(&counts, &terrain, self.cell_margin, &mut rng);
         let material_index =
             |name: &str| self.materials.keys().position(|k| k == name).unwrap_or(0);
         let mut instances = Vec::with_capacity(self.instance_count());
-        let mut build = |species: usize, position: Vec3, manual: &InstanceDesc, rng: &mut Rng| {
-            let s = &self.species[species];
-            let scale = manual
-                .scale
-                .unwrap_or_else(|| s.scale.0 + rng.unit() * (s.scale.1 - s.scale.0));
-            let head = manual.head.unwrap_or_else(|| rng.unit() * s.max_head);
-            let (pitch, roll) = match s.tilt {
-                Tilt::Terrain => tilt_from_normal(terrain.normal_at(position.x, position.z)),
-                Tilt::Random(max) => (
-                    (2.0 * rng.unit() - 1.0) * max,
-                    (2.0 * rng.unit() - 1.0) * max,
-                ),
+        let mut build =
+            |species: usize, position: Vec3, manual: &InstanceDesc, rng: &mut SplitMix64| {
+                let s = &self.species[species];
+                let scale = manual
+                    .scale
+                    .unwrap_or_else(|| s.scale.0 + rng.unit() * (s.scale.1 - s.scale.0));
+                let head = manual.head.unwrap_or_else(|| rng.unit() * s.max_head);
+                let (pitch, roll) = match s.tilt {
+                    Tilt::Terrain => tilt_from_normal(terrain.normal_at(position.x, position.z)),
+                    Tilt::Random(max) => (
+                        (2.0 * rng.unit() - 1.0) * max,
+                        (2.0 * rng.unit() - 1.0) * max,
+                    ),
+                };
+                let angles = Angles {
+                    head,
+                    pitch: manual.pitch.unwrap_or(pitch),
+                    roll: manual.roll.unwrap_or(roll),
+                };
+                instances.push(InstanceLayout {
+                    species,
+                    transform: Affine3A::from_scale_rotation_translation(
+                        Vec3::splat(scale),
+                        angles.rotation(),
+                        position,
+                    ),
+                    scale,
+                    trunk_material: material_index(&s.trunk_material),
+                    leaf_material: material_index(&s.leaf_material),
+                    motion: s.motion,
+                });
             };
-            let angles = Angles {
-                head,
-                pitch: manual.pitch.unwrap_or(pitch),
-                roll: manual.roll.unwrap_or(roll),
-            };
-            instances.push(InstanceLayout {
-                species,
-                transform: Affine3A::from_scale_rotation_translation(
-                    Vec3::splat(scale),
-                    angles.rotation(),
-                    position,
-                ),
-                scale,
-                trunk_material: material_index(&s.trunk_material),
-                leaf_material: material_index(&s.leaf_material),
-                motion: s.motion,
-            });
-        };
         for p in &placed {
             build(p.species, p.position, &InstanceDesc::default(), &mut rng);
         }

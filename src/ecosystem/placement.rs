@@ -11,6 +11,7 @@ use bevy::math::{Quat, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::terrain::Terrain;
+use crate::rng::SplitMix64;
 
 /// How instances of a species lean.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -54,28 +55,6 @@ pub fn tilt_from_normal(normal: Vec3) -> (f32, f32) {
     (pitch, roll)
 }
 
-/// A small seeded generator (stable across versions, like the species generator's).
-pub(crate) struct Rng(u64);
-
-impl Rng {
-    pub(crate) fn new(seed: u64) -> Self {
-        Self(seed ^ 0x00D1_CE5E_ED00)
-    }
-
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    pub(crate) fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1_u64 << 24) as f32
-    }
-}
-
 /// One placed instance: which species, where, and its grid cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Placement {
@@ -93,7 +72,7 @@ pub fn place(
     counts: &[usize],
     terrain: &Terrain,
     cell_margin: f32,
-    rng: &mut Rng,
+    rng: &mut SplitMix64,
 ) -> Vec<Placement> {
     let total: usize = counts.iter().sum();
     let g = (total as f64).sqrt().ceil() as usize;

@@ -5,6 +5,8 @@
 use bevy::math::{Vec2, Vec3, Vec3Swizzles};
 use serde::{Deserialize, Serialize};
 
+use crate::rng::SplitMix64;
+
 /// A terrain description, as stored in an ecosystem file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -255,18 +257,12 @@ impl TerrainDesc {
                 heights.push(self.surface_height(u, v));
             }
         }
-        let mut state = self.faults.seed ^ 0xFA_0175;
-        let mut unit = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1_u64 << 24) as f32
-        };
+        let mut rng = SplitMix64::new(self.faults.seed ^ 0x00FA_0175);
         let iterations = self.faults.iterations;
         for k in 0..iterations {
             let displacement = self.faults.amplitude * (1.0 - k as f32 / iterations as f32);
-            let point = Vec2::new(unit(), unit());
-            let angle = unit() * core::f32::consts::TAU;
+            let point = Vec2::new(rng.unit(), rng.unit());
+            let angle = rng.unit() * core::f32::consts::TAU;
             let direction = Vec2::new(angle.cos(), angle.sin());
             for j in 0..n {
                 for i in 0..n {

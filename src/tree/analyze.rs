@@ -1070,6 +1070,7 @@ fn attach_leaves(
                 center: *c,
                 normal: *nrm,
                 triangles: first_triangle..(model.leaf_indices.len() / 3) as u32,
+                group,
             });
         }
         model.leaf_groups.push(LeafGroup {

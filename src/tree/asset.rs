@@ -154,7 +154,10 @@ impl TreeModel {
         }
         let leaf_triangles = (self.leaf_indices.len() / 3) as u32;
         for (i, leaf) in self.leaves.iter().enumerate() {
-            if leaf.triangles.start > leaf.triangles.end || leaf.triangles.end > leaf_triangles {
+            if leaf.triangles.start > leaf.triangles.end
+                || leaf.triangles.end > leaf_triangles
+                || leaf.group as usize >= self.leaf_groups.len()
+            {
                 return Err(inconsistent(
                     "leaves",
                     format!("leaf {i} points outside leaf_indices"),

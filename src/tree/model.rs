@@ -171,6 +171,8 @@ pub struct Leaf {
     pub normal: Vec3,
     /// Its triangles in [`TreeModel::leaf_indices`].
     pub triangles: Range<u32>,
+    /// The leaf group it belongs to (whose terminal ring carries it in the wind).
+    pub group: u32,
 }
 
 /// Linear RGB colour, as stored in models (the renderer converts it).

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::analyze::{AnalysisOptions, MeshData, TreeAnalysis, TreeAnalysisError, analyze};
 use super::model::LinearRgb;
+use crate::rng::SplitMix64;
 
 /// One level of branching: the trunk (level 0), its branches, their branches…
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Reflect)]
@@ -188,30 +189,6 @@ pub struct GeneratedTree {
     pub leaf_indices: Vec<u32>,
 }
 
-/// `SplitMix64`: tiny, seedable and stable across versions, so a species file always
-/// produces the same tree (a general RNG crate may change its streams between releases).
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1_u64 << 24) as f32
-    }
-
-    /// Uniform in [-1, 1).
-    fn signed(&mut self) -> f32 {
-        2.0 * self.unit() - 1.0
-    }
-}
-
 fn invalid(field: String, message: &str) -> SpeciesError {
     SpeciesError::Invalid {
         field,
@@ -312,7 +289,7 @@ impl SpeciesDesc {
     /// Generates the trunk and leaves meshes.
     pub fn generate(&self) -> GeneratedTree {
         let mut out = GeneratedTree::default();
-        let mut rng = Rng(self.seed ^ 0x005E_ED0F_7EE5);
+        let mut rng = SplitMix64::new(self.seed ^ 0x005E_ED0F_7EE5);
         let trunk = &self.levels[0];
         let base = Vec3::new(0.0, -self.root_depth, 0.0);
         let tilt =
@@ -355,7 +332,7 @@ impl SpeciesDesc {
     fn grow(
         &self,
         out: &mut GeneratedTree,
-        rng: &mut Rng,
+        rng: &mut SplitMix64,
         level: usize,
         start: Vec3,
         direction: Vec3,
@@ -420,7 +397,7 @@ impl SpeciesDesc {
         }
     }
 
-    fn leaves_around(&self, out: &mut GeneratedTree, rng: &mut Rng, axis: &[Vec3]) {
+    fn leaves_around(&self, out: &mut GeneratedTree, rng: &mut SplitMix64, axis: &[Vec3]) {
         let leaves = &self.leaves;
         let n = axis.len() - 1;
         for _ in 0..leaves.per_twig {
