@@ -582,3 +582,43 @@ fn malformed_species_files_name_line_and_field() {
     let e = SpeciesDesc::from_ron_str("(levels: [])").unwrap_err();
     assert!(e.to_string().starts_with("levels:"));
 }
+
+/// Bevy meshes in, the same model out as from plain arrays; non-triangle meshes refused.
+#[cfg(feature = "render")]
+#[test]
+fn bevy_meshes_analyse_like_plain_arrays() {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::mesh::{Indices, Mesh, PrimitiveTopology};
+
+    let (p, idx) = figure_2_2();
+    let mesh = Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        p.iter().map(|v| v.to_array()).collect::<Vec<_>>(),
+    )
+    .with_inserted_indices(Indices::U16(idx.iter().map(|&i| i as u16).collect()));
+    let owned = OwnedMeshData::from_mesh(&mesh).unwrap();
+    assert_eq!(owned.indices, idx);
+    let from_mesh = analyze(
+        &owned.as_mesh_data(),
+        &MeshData::default(),
+        &AnalysisOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(from_mesh.model, trunk_only(&p, &idx).unwrap().model);
+    // The model's own meshes round-trip too.
+    let again = OwnedMeshData::from_mesh(&from_mesh.model.trunk_mesh()).unwrap();
+    assert_eq!(again.positions, from_mesh.model.trunk_positions);
+
+    let lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0_f32; 3]; 2]);
+    assert!(matches!(
+        OwnedMeshData::from_mesh(&lines),
+        Err(MeshConversionError::NotTriangleList(
+            PrimitiveTopology::LineList
+        ))
+    ));
+}

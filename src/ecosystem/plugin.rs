@@ -193,13 +193,15 @@ fn spawn_forests(
                 .id();
             state.instances.push(id);
         }
-        let mut terrain = commands.spawn((
-            ForestTerrain {
-                forest: entity,
-                terrain: layout.terrain.clone(),
-            },
-            Transform::default(),
-        ));
+        let terrain = commands
+            .spawn((
+                ForestTerrain {
+                    forest: entity,
+                    terrain: layout.terrain.clone(),
+                },
+                Transform::default(),
+            ))
+            .id();
         #[cfg(feature = "render")]
         if let (Some(meshes), Some(materials)) = (meshes.as_mut(), materials.as_mut()) {
             let t = &layout.terrain;
@@ -226,7 +228,7 @@ fn spawn_forests(
                 .materials
                 .get(&ecosystem.terrain_material)
                 .map_or([0.3, 0.4, 0.2], |m| m.diffuse);
-            terrain.insert((
+            commands.entity(terrain).insert((
                 Mesh3d(meshes.add(mesh)),
                 MeshMaterial3d(materials.add(StandardMaterial {
                     base_color: Color::linear_rgb(ground[0], ground[1], ground[2]),
@@ -235,6 +237,6 @@ fn spawn_forests(
                 })),
             ));
         }
-        state.terrain = Some(terrain.id());
+        state.terrain = Some(terrain);
     }
 }
