@@ -597,7 +597,7 @@ fn bevy_meshes_analyse_like_plain_arrays() {
     )
     .with_inserted_attribute(
         Mesh::ATTRIBUTE_POSITION,
-        p.iter().map(|v| v.to_array()).collect::<Vec<_>>(),
+        p.iter().map(Vec3::to_array).collect::<Vec<_>>(),
     )
     .with_inserted_indices(Indices::U16(idx.iter().map(|&i| i as u16).collect()));
     let owned = OwnedMeshData::from_mesh(&mesh).unwrap();
