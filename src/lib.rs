@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 pub mod budget;
+pub mod cost;
 pub mod culling;
 pub mod ecosystem;
 pub mod tree;

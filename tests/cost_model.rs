@@ -1,0 +1,122 @@
+//! Cost-model groundwork: fitting, logic interpolation, calibration files, online correction.
+
+use bevy_sherwood::cost::*;
+
+#[test]
+fn fitting_recovers_known_parameters_from_noisy_samples() {
+    let truth = LinearCost {
+        fixed: 3e-3,
+        per_primitive: 1.2e-6,
+        per_pixel: 4e-9,
+    };
+    let mut state = 7_u64;
+    let mut noise = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0 // ±1
+    };
+    let mut samples = Vec::new();
+    for n in [500.0, 2_000.0, 8_000.0, 20_000.0, 50_000.0] {
+        for pixels_per in [5.0, 40.0, 200.0] {
+            let pixels = n * pixels_per;
+            let time = truth.time(n, pixels) * (1.0 + 0.03 * noise()); // 3% noise
+            samples.push(CostSample {
+                primitives: n,
+                pixels,
+                time,
+            });
+        }
+    }
+    let fit = fit_linear_cost(&samples).unwrap();
+    let close = |a: f32, b: f32| ((a - b) / b).abs() < 0.05;
+    assert!(close(fit.fixed, truth.fixed), "{fit:?}");
+    assert!(close(fit.per_primitive, truth.per_primitive), "{fit:?}");
+    assert!(close(fit.per_pixel, truth.per_pixel), "{fit:?}");
+}
+
+#[test]
+fn fitting_refuses_too_few_or_degenerate_samples() {
+    let s = |n: f32, p: f32| CostSample {
+        primitives: n,
+        pixels: p,
+        time: 1e-3,
+    };
+    assert_eq!(
+        fit_linear_cost(&[s(1.0, 1.0), s(2.0, 2.0)]),
+        Err(FitError::TooFewSamples(2))
+    );
+    // Pixels always 10 × primitives: the two parts cannot be told apart.
+    let collinear: Vec<_> = (1..10).map(|i| s(i as f32, 10.0 * i as f32)).collect();
+    assert_eq!(fit_linear_cost(&collinear), Err(FitError::Degenerate));
+}
+
+#[test]
+fn logic_interpolation_at_between_and_outside_the_samples() {
+    let table = LogicTable::new(vec![(1000, 0.010), (0, 0.002), (500, 0.004), (500, 0.006)]);
+    assert_eq!(table.samples, vec![(0, 0.002), (500, 0.005), (1000, 0.010)]);
+    assert!((table.time(500) - 0.005).abs() < 1e-7); // at
+    assert!((table.time(250) - 0.0035).abs() < 1e-7); // between
+    assert!((table.time(750) - 0.0075).abs() < 1e-7);
+    assert!((table.time(1500) - 0.015).abs() < 1e-6); // beyond: nearest segment extended
+    let falling = LogicTable::new(vec![(100, 0.001), (200, 0.0005)]);
+    assert_eq!(falling.time(1000), 0.0); // never negative
+    assert_eq!(LogicTable::default().time(10), 0.0);
+    assert_eq!(LogicTable::new(vec![(5, 0.003)]).time(99), 0.003);
+}
+
+#[test]
+fn calibration_files_round_trip_and_bad_ones_fall_back() {
+    let calibration = Calibration {
+        adapter: "llvmpipe (LLVM 15.0.6, 256 bits)".into(),
+        ..Default::default()
+    };
+    let text = calibration.to_ron_string().unwrap();
+    assert_eq!(Calibration::from_ron_str(&text).unwrap(), calibration);
+    let (fallback, error) = Calibration::from_ron_str_or_default("(adapter: \"x\", trianglez: ())");
+    assert_eq!(fallback, Calibration::default());
+    let message = error.unwrap().to_string();
+    assert!(
+        message.contains("trianglez") && message.starts_with("1:"),
+        "{message}"
+    );
+    let mut negative = calibration.clone();
+    negative.lines[3].per_primitive = -1.0;
+    assert!(matches!(
+        Calibration::from_ron_str(&negative.to_ron_string().unwrap()),
+        Err(CalibrationError::Invalid(_))
+    ));
+}
+
+#[test]
+fn correction_converges_within_a_second_without_oscillating() {
+    let mut correction = OnlineCorrection::default();
+    let dt = 0.05; // 20 frames per second
+    let predicted = 0.040;
+    let mut factors = Vec::new();
+    for frame in 0..80 {
+        // The renderer becomes twice as slow after two seconds.
+        let speed = if frame < 40 { 1.0 } else { 2.0 };
+        correction.update(predicted, predicted * 1.3 * speed, dt);
+        factors.push(correction.factor());
+    }
+    // Settled to the stale calibration's error within a second (20 frames), then to the jump.
+    assert!((factors[20] - 1.3).abs() / 1.3 < 0.05, "{}", factors[20]);
+    assert!((factors[60] - 2.6).abs() / 2.6 < 0.05, "{}", factors[60]);
+    // Monotone approach: no overshoot, no oscillation.
+    assert!(
+        factors[..40]
+            .windows(2)
+            .all(|w| w[1] >= w[0] && w[1] <= 1.3 + 1e-5)
+    );
+    assert!(
+        factors[40..]
+            .windows(2)
+            .all(|w| w[1] >= w[0] && w[1] <= 2.6 + 1e-5)
+    );
+    // Garbage frames change nothing.
+    let before = correction.factor();
+    correction.update(0.0, 0.05, dt);
+    correction.update(0.04, f32::NAN, dt);
+    assert_eq!(correction.factor(), before);
+}
