@@ -6,6 +6,7 @@ pub mod cost;
 pub mod culling;
 pub mod ecosystem;
 pub mod tree;
+pub mod wind;
 
 mod rng;
 

@@ -4,7 +4,7 @@
 //! between releases).
 
 /// `SplitMix64`.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) struct SplitMix64(u64);
 
 impl SplitMix64 {
