@@ -1,7 +1,9 @@
-//! Spring-driven wind (thesis chapter 5). This release holds the springs; association
-//! of rings with springs, the motion of the ring hierarchy and its level of detail come
-//! with the wind stage.
+//! Spring-driven wind (thesis chapter 5): springs, rings associated with springs, and
+//! the ring offsets of a moving tree. The ECS stage (spring-set assets, motion level of
+//! detail, the renderer's ring-offset table) comes with the wind stage.
 
+mod motion;
 mod spring;
 
+pub use motion::{AssociationRule, RingMotion, associate, moved_bounds, ring_offsets};
 pub use spring::{FixedStepper, GustDesc, Spring, SpringDesc, WindDesc};

@@ -1,0 +1,200 @@
+//! Moving a tree's rings with springs.
+
+use bevy::math::{Quat, Vec3};
+use bevy_sherwood::tree::{SpeciesDesc, TreeModel};
+use bevy_sherwood::wind::*;
+
+fn model() -> TreeModel {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/species/broad.species.ron"
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    SpeciesDesc::from_ron_str(&text)
+        .unwrap()
+        .generate_and_analyze()
+        .unwrap()
+        .model
+}
+
+/// Thick rings follow spring 0 at 50%, thin ones spring 1 at 90%.
+fn rules() -> Vec<AssociationRule> {
+    vec![
+        AssociationRule {
+            spring: 0,
+            min_diameter: 0.15,
+            influence: 0.5,
+            max_angle: 8.0,
+            ..Default::default()
+        },
+        AssociationRule {
+            spring: 1,
+            influence: 0.9,
+            max_angle: 25.0,
+            ..Default::default()
+        },
+    ]
+}
+
+#[test]
+fn rings_associate_by_rule_and_the_root_never_does() {
+    let m = model();
+    let motions = associate(&m, &rules(), 2);
+    for (ring, motion) in m.rings.iter().zip(&motions) {
+        if ring.is_root() {
+            assert_eq!(motion.spring, None);
+        } else if ring.diameter >= 0.15 {
+            assert_eq!(motion.spring, Some(0));
+        } else {
+            assert_eq!(motion.spring, Some(1));
+        }
+    }
+    // Each root's first child starts motion; nothing below a moving ring does.
+    for (r, ring) in m.rings.iter().enumerate() {
+        if motions[r].start_of_motion {
+            assert!(m.rings[ring.parent as usize].is_root());
+        }
+    }
+    // Rules naming springs the set lacks are ignored.
+    assert!(
+        associate(&m, &rules(), 0)
+            .iter()
+            .all(|x| x.spring.is_none())
+    );
+}
+
+#[test]
+fn root_stays_lengths_are_kept_and_angles_limited() {
+    let m = model();
+    let motions = associate(&m, &rules(), 2);
+    let mut offsets = Vec::new();
+    for springs in [
+        [Vec3::new(3.0, 0.0, 1.0), Vec3::new(-2.0, 1.0, 4.0)],
+        [Vec3::ZERO, Vec3::new(0.0, 0.0, 50.0)],
+    ] {
+        ring_offsets(
+            &m,
+            &motions,
+            &springs,
+            Quat::IDENTITY,
+            1.0,
+            0.0,
+            &mut offsets,
+        );
+        for (r, ring) in m.rings.iter().enumerate() {
+            if ring.is_root() {
+                assert_eq!(offsets[r], Vec3::ZERO);
+                continue;
+            }
+            let p = ring.parent as usize;
+            let rest = ring.center - m.rings[p].center;
+            let moved = (ring.center + offsets[r]) - (m.rings[p].center + offsets[p]);
+            assert!(
+                (moved.length() - rest.length()).abs() <= 0.01 * rest.length() + 1e-5,
+                "ring {r}"
+            );
+            if rest.length() > 1e-4 {
+                let limit = motions[r].max_angle + 1e-3;
+                assert!(
+                    rest.angle_between(moved) <= limit,
+                    "ring {r}: {} > {limit}",
+                    rest.angle_between(moved)
+                );
+            }
+        }
+        assert!(offsets.iter().any(|o| o.length() > 0.05), "something moves");
+    }
+}
+
+#[test]
+fn every_tree_bends_the_same_world_direction() {
+    let m = model();
+    let motions = associate(&m, &rules(), 2);
+    let wind = [Vec3::new(2.0, 0.0, 0.0), Vec3::new(4.0, 0.0, 0.0)];
+    let tip = m
+        .rings
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.center.y.total_cmp(&b.1.center.y))
+        .unwrap()
+        .0;
+    for head in [0.0_f32, 90.0, 200.0] {
+        let rotation = Quat::from_rotation_y(head.to_radians());
+        let mut offsets = Vec::new();
+        ring_offsets(&m, &motions, &wind, rotation, 1.3, 0.0, &mut offsets);
+        let world = rotation * offsets[tip];
+        assert!(
+            world.x > 0.0 && world.x > 3.0 * world.z.abs(),
+            "head {head}: {world}"
+        );
+    }
+}
+
+#[test]
+fn small_movements_accumulate_until_they_show() {
+    let m = model();
+    let motions = associate(&m, &rules(), 2);
+    let wind = [Vec3::new(0.05, 0.0, 0.0), Vec3::new(0.05, 0.0, 0.0)];
+    // Rings that move relative to their parent (not just carried along).
+    let moving = |o: &[Vec3]| {
+        m.rings
+            .iter()
+            .enumerate()
+            .filter(|(r, ring)| {
+                !ring.is_root() && (o[*r] - o[ring.parent as usize]).length() > 1e-6
+            })
+            .count()
+    };
+    let (mut exact, mut thresholded, mut nothing) = (Vec::new(), Vec::new(), Vec::new());
+    ring_offsets(&m, &motions, &wind, Quat::IDENTITY, 1.0, 0.0, &mut exact);
+    ring_offsets(
+        &m,
+        &motions,
+        &wind,
+        Quat::IDENTITY,
+        1.0,
+        0.05,
+        &mut thresholded,
+    );
+    ring_offsets(&m, &motions, &wind, Quat::IDENTITY, 1.0, 1e9, &mut nothing);
+    assert!(
+        moving(&thresholded) < moving(&exact),
+        "{} vs {}",
+        moving(&thresholded),
+        moving(&exact)
+    );
+    assert!(
+        moving(&thresholded) > 0,
+        "accumulated movement shows further out"
+    );
+    assert_eq!(moving(&nothing), 0);
+    assert!(nothing.iter().all(|o| *o == Vec3::ZERO));
+}
+
+#[test]
+fn moved_bounds_follow_the_rings() {
+    let m = model();
+    let motions = associate(&m, &rules(), 2);
+    let mut offsets = Vec::new();
+    ring_offsets(
+        &m,
+        &motions,
+        &[Vec3::new(5.0, 0.0, 0.0); 2],
+        Quat::IDENTITY,
+        1.0,
+        0.0,
+        &mut offsets,
+    );
+    let (trunk, groups) = moved_bounds(&m, &offsets);
+    for (ring, offset) in m.rings.iter().zip(&offsets) {
+        assert!(trunk.contains(ring.center + *offset, 1e-4));
+    }
+    for (g, moved) in m.leaf_groups.iter().zip(&groups) {
+        assert_eq!(moved.center, g.bounds.center + offsets[g.ring as usize]);
+        assert_eq!(moved.radius, g.bounds.radius);
+    }
+    assert!(
+        trunk.max.x > m.trunk_bounds.max.x,
+        "the crown leans with the wind"
+    );
+}
