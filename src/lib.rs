@@ -90,5 +90,6 @@ impl PluginGroup for SherwoodPlugins {
             .add(tree::TreePlugin)
             .add(ecosystem::EcosystemPlugin)
             .add(culling::CullingPlugin)
+            .add(wind::WindPlugin)
     }
 }

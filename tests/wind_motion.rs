@@ -198,3 +198,29 @@ fn moved_bounds_follow_the_rings() {
         "the crown leans with the wind"
     );
 }
+
+#[test]
+fn shipped_spring_set_loads_and_bad_ones_are_refused() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/wind/default.wind.ron");
+    let set = SpringSet::from_ron_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    assert_eq!(set.springs.len(), 3);
+    let m = model();
+    let motions = associate(&m, &set.rules, set.springs.len());
+    assert!(motions.iter().filter(|x| x.spring.is_some()).count() > m.rings.len() / 2);
+
+    let error = |text: &str| SpringSet::from_ron_str(text).unwrap_err().to_string();
+    assert!(
+        error("(time_step: 0.01, springs: [(stiffness: 1e6)])")
+            .starts_with("springs[0].stiffness: too stiff")
+    );
+    assert_eq!(
+        error("(springs: [(damping: 1.5)])"),
+        "springs[0].damping: must be in (0, 1]: the velocity kept per step"
+    );
+    assert_eq!(
+        error("(springs: [()], rules: [(spring: 3)])"),
+        "rules[0].spring: there are only 1 springs"
+    );
+    assert!(error("(springz: [])").contains("springz"));
+    assert_eq!(error("(springs: [])"), "springs: needs at least one spring");
+}

@@ -142,8 +142,8 @@ impl RobinHood {
     /// O(n); otherwise an O(n log n) sort runs on a scratch index buffer.
     ///
     /// NaN, negative or infinite values count as 0 (such objects get no time and are
-    /// drawn truncated); `slices` shorter than `values` are a caller bug and the extra
-    /// objects get 0 complexity.
+    /// drawn truncated). Objects beyond the end of a shorter `complexities` slice count
+    /// as complexity 0 (visited first).
     pub fn distribute_with<F>(
         &mut self,
         values: &[f32],

@@ -1,0 +1,184 @@
+//! Spring sets as assets (`*.wind.ron`): the springs a group of trees shares, the rules
+//! that associate their rings with the springs, and the motion level of detail.
+
+use bevy::asset::io::Reader;
+use bevy::asset::{AssetLoader, LoadContext};
+use bevy::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::motion::AssociationRule;
+use super::spring::SpringDesc;
+
+/// A spring set, as stored in `*.wind.ron`.
+#[derive(Asset, TypePath, Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SpringSet {
+    /// Fixed simulation step, seconds.
+    pub time_step: f32,
+    /// An instance whose largest projected spring displacement is below this many pixels
+    /// is not moved at all (motion level of detail); also the per-ring threshold below
+    /// which movement accumulates along a path instead of being applied.
+    pub pixel_threshold: f32,
+    /// The springs; several with slightly different parameters give variety.
+    pub springs: Vec<SpringDesc>,
+    /// Which rings follow which spring (first match wins).
+    pub rules: Vec<AssociationRule>,
+}
+
+impl Default for SpringSet {
+    fn default() -> Self {
+        Self {
+            time_step: 1.0 / 120.0,
+            pixel_threshold: 0.5,
+            springs: vec![SpringDesc::default()],
+            rules: vec![AssociationRule::default()],
+        }
+    }
+}
+
+/// Why a spring set was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum SpringSetError {
+    /// Reading failed.
+    #[error("could not read the file: {0}")]
+    Io(#[from] std::io::Error),
+    /// Not UTF-8.
+    #[error("the file is not UTF-8 text: {0}")]
+    Utf8(#[from] core::str::Utf8Error),
+    /// The RON does not parse (the message names line, column and field).
+    #[error("{0}")]
+    Ron(#[from] ron::error::SpannedError),
+    /// A value is out of range.
+    #[error("{field}: {message}")]
+    Invalid {
+        /// The field (`springs[2].damping`).
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+fn invalid(field: String, message: impl Into<String>) -> SpringSetError {
+    SpringSetError::Invalid {
+        field,
+        message: message.into(),
+    }
+}
+
+impl SpringSet {
+    /// Parses and validates a spring set (optional fields may be written bare).
+    pub fn from_ron_str(text: &str) -> Result<Self, SpringSetError> {
+        let options = ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+        let set: Self = options.from_str(text)?;
+        set.validate()?;
+        Ok(set)
+    }
+
+    /// Checks ranges, and that the time step is small enough for every spring to stay
+    /// stable (semi-implicit Euler needs `ω·dt < 2`; this asks for `ω·dt ≤ 1`).
+    pub fn validate(&self) -> Result<(), SpringSetError> {
+        if !(self.time_step.is_finite() && self.time_step > 0.0 && self.time_step <= 0.1) {
+            return Err(invalid("time_step".into(), "must be in (0, 0.1] seconds"));
+        }
+        if !(self.pixel_threshold.is_finite() && self.pixel_threshold >= 0.0) {
+            return Err(invalid(
+                "pixel_threshold".into(),
+                "must be a non-negative number",
+            ));
+        }
+        if self.springs.is_empty() {
+            return Err(invalid("springs".into(), "needs at least one spring"));
+        }
+        for (i, s) in self.springs.iter().enumerate() {
+            let f = |name: &str| format!("springs[{i}].{name}");
+            if !(s.stiffness.is_finite() && s.stiffness > 0.0) {
+                return Err(invalid(f("stiffness"), "must be positive"));
+            }
+            if !(s.mass.is_finite() && s.mass > 0.0) {
+                return Err(invalid(f("mass"), "must be positive"));
+            }
+            if !(s.damping > 0.0 && s.damping <= 1.0) {
+                return Err(invalid(
+                    f("damping"),
+                    "must be in (0, 1]: the velocity kept per step",
+                ));
+            }
+            let omega = (s.stiffness / s.mass).sqrt();
+            if omega * self.time_step > 1.0 {
+                return Err(invalid(
+                    f("stiffness"),
+                    format!(
+                        "too stiff for time_step {}: ω·dt = {:.2} > 1 would be unstable; use a smaller step or a softer spring",
+                        self.time_step,
+                        omega * self.time_step
+                    ),
+                ));
+            }
+            let w = &s.wind;
+            let g = &w.gusts;
+            let ok = w.direction.is_finite()
+                && w.strength.is_finite()
+                && g.frequency.is_finite()
+                && g.frequency >= 0.0
+                && g.strength.0.is_finite()
+                && g.strength.1 >= g.strength.0
+                && g.duration.0 >= 0.0
+                && g.duration.1 >= g.duration.0
+                && g.rise >= 0.0
+                && g.fall >= 0.0;
+            if !ok {
+                return Err(invalid(
+                    f("wind"),
+                    "direction and strengths must be finite, ranges (min, max) ordered, times non-negative",
+                ));
+            }
+        }
+        for (i, r) in self.rules.iter().enumerate() {
+            if r.spring as usize >= self.springs.len() {
+                return Err(invalid(
+                    format!("rules[{i}].spring"),
+                    format!("there are only {} springs", self.springs.len()),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Loads `*.wind.ron` spring sets.
+#[derive(Default, TypePath)]
+pub struct SpringSetLoader;
+
+impl AssetLoader for SpringSetLoader {
+    type Asset = SpringSet;
+    type Settings = ();
+    type Error = SpringSetError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        _load_context: &mut LoadContext<'_>,
+    ) -> Result<SpringSet, SpringSetError> {
+        let mut bytes = Vec::new();
+        reader.read_to_end(&mut bytes).await?;
+        SpringSet::from_ron_str(core::str::from_utf8(&bytes)?)
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["wind.ron"]
+    }
+}
+
+/// Registers spring-set assets. (The wind stage in `SherwoodSystems::Animate` comes with
+/// the wind issue.)
+#[derive(Default)]
+pub struct WindPlugin;
+
+impl Plugin for WindPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<SpringSet>()
+            .register_asset_loader(SpringSetLoader);
+    }
+}
