@@ -6,6 +6,7 @@ mod analyze;
 mod asset;
 #[cfg(feature = "gltf")]
 mod gltf;
+mod lod;
 #[cfg(feature = "render")]
 mod mesh;
 mod model;
@@ -21,6 +22,7 @@ pub use asset::{
 pub use gltf::{
     GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffer_uris, import_gltf,
 };
+pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
 #[cfg(feature = "render")]
 pub use mesh::{MeshConversionError, OwnedMeshData};
 pub use model::{

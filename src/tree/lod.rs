@@ -1,0 +1,238 @@
+//! The thesis' points-and-lines level of detail without a budget (§4.4): thin trunk
+//! segments become screen-space lines of several widths, leaves become points, both
+//! chosen by their projected size. The time-critical searches build on the same pieces.
+
+use core::ops::Range;
+
+use super::model::TreeModel;
+
+/// How the view projects: pixels covered by one world unit at unit depth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projection {
+    /// `viewport height / (2·tan(vertical fov / 2))`, in pixels.
+    pub focal_pixels: f32,
+}
+
+impl Projection {
+    /// The projection of a perspective camera with vertical field of view `fov` (radians)
+    /// on a viewport `height` pixels tall.
+    pub fn perspective(fov: f32, height: f32) -> Self {
+        Self {
+            focal_pixels: height / (2.0 * (fov * 0.5).tan()).max(1e-6),
+        }
+    }
+
+    /// Pixels covered by `length` world units at `depth`.
+    pub fn pixels(&self, length: f32, depth: f32) -> f32 {
+        length * self.focal_pixels / depth.max(1e-3)
+    }
+}
+
+/// The range of integer line widths or point sizes, in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRange {
+    /// Thinnest or smallest.
+    pub min: u32,
+    /// Widest or largest.
+    pub max: u32,
+}
+
+impl Default for PixelRange {
+    fn default() -> Self {
+        Self { min: 1, max: 20 }
+    }
+}
+
+/// What one trunk draws: segment ranges (in the model's thin → thick order).
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub struct TrunkLod {
+    /// Segments too thin to see (below half a pixel of the thinnest width).
+    pub dropped: Range<u32>,
+    /// `(width in pixels, segments)` drawn as lines, thin → thick.
+    pub lines: Vec<(u32, Range<u32>)>,
+    /// Segments drawn as triangles (the thickest).
+    pub triangles: Range<u32>,
+}
+
+/// Static trunk LOD for an instance of `scale` at `depth` (thesis §4.4.1): a segment is
+/// drawn as a line of width `w` when its projected diameter lies in `[w − ½, w + ½)`
+/// pixels; thinner than the thinnest width's range it is dropped; thicker than the
+/// widest width's it is drawn as triangles.
+pub fn trunk_lod(
+    model: &TreeModel,
+    scale: f32,
+    depth: f32,
+    projection: &Projection,
+    widths: PixelRange,
+) -> TrunkLod {
+    let segments = &model.segments;
+    let n = segments.len() as u32;
+    let projected = |s: u32| projection.pixels(segments.diameter[s as usize] * scale, depth);
+    let (min, max) = (widths.min.max(1), widths.max.max(widths.min.max(1)));
+    let mut s = 0;
+    let mut lod = TrunkLod::default();
+    if n == 0 || projected(0) >= max as f32 + 0.5 {
+        lod.triangles = 0..n;
+        return lod;
+    }
+    while s < n && projected(s) < min as f32 - 0.5 {
+        s += 1;
+    }
+    lod.dropped = 0..s;
+    for w in min..=max {
+        let start = s;
+        while s < n && projected(s) < w as f32 + 0.5 {
+            s += 1;
+        }
+        if s > start {
+            lod.lines.push((w, start..s));
+        }
+    }
+    lod.triangles = s..n;
+    lod
+}
+
+/// What one leaf group draws.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct GroupLod {
+    /// Leaves drawn as points.
+    pub points: u32,
+    /// Whether the points are the group's far leaves (`true`) or its near ones.
+    pub points_from_far_end: bool,
+    /// Leaves drawn as triangles (the rest of the group).
+    pub triangle_leaves: u32,
+}
+
+/// Static leaf LOD for group `group` of an instance of `scale` at the group's `depth`
+/// (thesis §4.4.2): the group projects `a_g = n·a_h·s² / (1.8·z²)` (T-4.4; half the leaves
+/// assumed to face the camera), a point of `point_size` pixels covers `point_size²`, and
+/// `n_p = a_g / a_p` points are drawn from the far end when fewer than the `n` leaves;
+/// between `n` and `2n`, `2n − n_p` near points and the rest as triangles (T-4.6);
+/// beyond, every leaf as triangles.
+pub fn group_lod(
+    model: &TreeModel,
+    group: usize,
+    scale: f32,
+    depth: f32,
+    projection: &Projection,
+    point_size: u32,
+) -> GroupLod {
+    let n = model.leaf_groups[group].leaves.len() as f32;
+    let leaf_area = model.mean_leaf_triangle_area * model.leaf_triangle_count() as f32
+        / model.leaves.len().max(1) as f32;
+    let pixels_per_unit = projection.pixels(1.0, depth);
+    let projected = n * leaf_area * scale * scale * pixels_per_unit * pixels_per_unit / 1.8;
+    let point_area = (point_size.max(1) as f32).powi(2);
+    let wanted = (projected / point_area).max(1.0);
+    let total = n as u32;
+    if wanted < n {
+        GroupLod {
+            points: (wanted.round() as u32).clamp(1, total),
+            points_from_far_end: true,
+            triangle_leaves: 0,
+        }
+    } else if wanted < 2.0 * n {
+        let points = ((2.0 * n - wanted).round() as u32).min(total);
+        GroupLod {
+            points,
+            points_from_far_end: false,
+            triangle_leaves: total - points,
+        }
+    } else {
+        GroupLod {
+            points: 0,
+            points_from_far_end: true,
+            triangle_leaves: total,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tree::SpeciesDesc;
+
+    fn model() -> TreeModel {
+        let text = include_str!("../../assets/species/grand.species.ron");
+        SpeciesDesc::from_ron_str(text)
+            .unwrap()
+            .generate_and_analyze()
+            .unwrap()
+            .model
+    }
+
+    const PROJECTION: Projection = Projection {
+        focal_pixels: 600.0,
+    };
+
+    fn covers_every_segment(lod: &TrunkLod, n: u32) {
+        let mut next = lod.dropped.end;
+        assert_eq!(lod.dropped.start, 0);
+        for (_, r) in &lod.lines {
+            assert_eq!(r.start, next);
+            next = r.end;
+        }
+        assert_eq!(lod.triangles, next..n);
+    }
+
+    #[test]
+    fn near_trees_are_triangles_far_trees_lines_and_widths_follow_diameter() {
+        let m = model();
+        let n = m.segments.len() as u32;
+        // Close enough that even the thinnest segment projects 25 px (> 20 + ½).
+        let near_depth = m.segments.diameter[0] * PROJECTION.focal_pixels / 25.0;
+        let near = trunk_lod(&m, 1.0, near_depth, &PROJECTION, PixelRange::default());
+        assert_eq!(near.triangles, 0..n);
+        assert!(near.lines.is_empty());
+        // The trunk's base projects ~35 px (triangles) while twigs project ~1 px (lines).
+        let middle = trunk_lod(&m, 1.0, 12.0, &PROJECTION, PixelRange::default());
+        covers_every_segment(&middle, n);
+        assert!(!middle.lines.is_empty() && !middle.triangles.is_empty());
+        assert!(
+            middle.lines.windows(2).all(|w| w[0].0 < w[1].0),
+            "widths rise thin → thick"
+        );
+        // Each line's width matches its segments' projected diameters within ½ pixel.
+        for (w, r) in &middle.lines {
+            for s in r.clone() {
+                let px = PROJECTION.pixels(m.segments.diameter[s as usize], 12.0);
+                assert!(
+                    (px - *w as f32).abs() <= 0.5 + 1e-4,
+                    "segment {s}: {px} px as width {w}"
+                );
+            }
+        }
+        let far = trunk_lod(&m, 1.0, 5_000.0, &PROJECTION, PixelRange::default());
+        covers_every_segment(&far, n);
+        assert!(far.triangles.is_empty() && far.dropped.len() > middle.dropped.len());
+    }
+
+    #[test]
+    fn leaf_groups_go_from_triangles_to_mixed_to_points_with_distance() {
+        let m = model();
+        let g = (0..m.leaf_groups.len())
+            .max_by_key(|&g| m.leaf_groups[g].leaves.len())
+            .unwrap();
+        let n = m.leaf_groups[g].leaves.len() as u32;
+        let mut seen_mixed = false;
+        for depth in [1.0, 10.0, 20.0, 40.0, 80.0, 200.0, 1000.0] {
+            let lod = group_lod(&m, g, 1.0, depth, &PROJECTION, 2);
+            if lod.points_from_far_end {
+                assert_eq!(
+                    lod.triangle_leaves + lod.points,
+                    if lod.points == 0 { n } else { lod.points }
+                );
+            } else {
+                seen_mixed = true;
+                assert_eq!(lod.points + lod.triangle_leaves, n);
+            }
+            assert!(lod.points <= n && lod.points >= 1 || lod.triangle_leaves == n);
+        }
+        assert!(seen_mixed, "some depth mixes near points with triangles");
+        assert_eq!(
+            group_lod(&m, g, 1.0, 0.5, &PROJECTION, 2).triangle_leaves,
+            n
+        );
+        assert_eq!(group_lod(&m, g, 1.0, 1e5, &PROJECTION, 2).points, 1);
+    }
+}
