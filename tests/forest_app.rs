@@ -104,3 +104,41 @@ fn forest_spawns_culls_and_respawns() {
     }
     assert_eq!(count::<TreeInstance>(&mut app), 500);
 }
+
+#[test]
+fn a_species_that_fails_to_load_does_not_hold_the_forest_back() {
+    let mut app = app();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/forests/default.ecosystem.ron"
+    ))
+    .unwrap();
+    let mut desc = bevy_sherwood::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap();
+    desc.species[1].tree = "species/missing.species.ron".into();
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<Ecosystem>>()
+        .add(Ecosystem(desc));
+    app.world_mut().spawn(Forest(handle));
+    let view = Mat4::perspective_infinite_reverse_rh(1.2, 1.0, 0.1)
+        * Mat4::look_at_rh(
+            Vec3::new(100.0, 400.0, 100.01),
+            Vec3::new(100.0, 0.0, 100.0),
+            Vec3::Y,
+        );
+    app.world_mut()
+        .spawn(CullView(FrustumPlanes::from_clip_from_world(view)));
+    until_culled(&mut app);
+    app.update();
+    let culling = app.world().resource::<ForestCulling>();
+    let visible = culling
+        .result
+        .visibility
+        .iter()
+        .filter(|v| **v != bevy_sherwood::culling::InstanceVisibility::Invisible)
+        .count();
+    assert_eq!(
+        visible, 400,
+        "the two species that loaded are seen from above; the missing one is not"
+    );
+}

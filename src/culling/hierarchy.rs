@@ -320,7 +320,11 @@ impl BoxHierarchy {
             .iter()
             .map(|i| cell_of(i.transform.translation.into()))
             .collect();
-        let mut order: Vec<u32> = (0..instances.len() as u32).collect();
+        // An instance with an empty box (a tree that failed to load) can never be visible:
+        // it stays out of the hierarchy, so a fully visible box cannot mark it visible.
+        let mut order: Vec<u32> = (0..instances.len() as u32)
+            .filter(|&i| !instance_bounds[i as usize].is_empty())
+            .collect();
         order.sort_by_key(|&i| leaf_of[i as usize]);
         let mut nodes = vec![
             Node {

@@ -29,6 +29,7 @@ pub struct ForestCulling {
     /// This frame's answer.
     pub result: CullResult,
     generation: u32,
+    failed_logged: u32,
 }
 
 /// Draws the culling boxes with gizmos: dashed for fully visible, solid for partially
@@ -84,6 +85,7 @@ fn rebuild_hierarchy(
     instances: Query<(&TreeInstance, &GlobalTransform)>,
     terrains: Query<&ForestTerrain>,
     models: Res<Assets<TreeModel>>,
+    server: Res<AssetServer>,
 ) {
     let Some(state) = forests.iter().find(|s| !s.instances.is_empty()) else {
         return;
@@ -91,14 +93,29 @@ fn rebuild_hierarchy(
     if culling.hierarchy.is_some() && culling.generation == state.generation {
         return;
     }
-    let Some(shapes) = state
-        .species
-        .iter()
-        .map(|h| models.get(h).map(CullShape::from))
-        .collect::<Option<Vec<_>>>()
-    else {
-        return; // some species still loading
-    };
+    // A species whose tree failed to load gets an empty shape: its instances are never
+    // visible, and the rest of the forest is not held back waiting for it.
+    let mut shapes = Vec::with_capacity(state.species.len());
+    for handle in &state.species {
+        if let Some(model) = models.get(handle) {
+            shapes.push(CullShape::from(model));
+        } else if server.load_state(handle).is_failed() {
+            if culling.failed_logged != state.generation {
+                error!(
+                    "tree {:?} failed to load; its instances are not drawn",
+                    handle.path()
+                );
+            }
+            shapes.push(CullShape {
+                bounds: Bounds::EMPTY,
+                trunk: Bounds::EMPTY,
+                groups: Vec::new(),
+            });
+        } else {
+            return; // still loading
+        }
+    }
+    culling.failed_logged = state.generation;
     let mut entities = Vec::with_capacity(state.instances.len());
     let mut list = Vec::with_capacity(state.instances.len());
     for &entity in &state.instances {
