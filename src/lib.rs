@@ -10,6 +10,12 @@ pub mod wind;
 
 mod rng;
 
+/// How every RON file of the crate is read: optional fields may be written bare
+/// (`knots_x: [...]`) or as `Some(...)`.
+pub(crate) fn ron_options() -> ron::Options {
+    ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+}
+
 use bevy::app::{PluginGroup, PluginGroupBuilder};
 use bevy::ecs::schedule::SystemSet;
 use bevy::prelude::*;

@@ -285,7 +285,7 @@ pub enum CalibrationError {
 impl Calibration {
     /// Parses and validates a calibration.
     pub fn from_ron_str(text: &str) -> Result<Self, CalibrationError> {
-        let calibration: Self = ron::from_str(text)?;
+        let calibration: Self = crate::ron_options().from_str(text)?;
         let costs = core::iter::once(&calibration.triangles)
             .chain(&calibration.lines)
             .chain(&calibration.points);

@@ -192,9 +192,7 @@ impl EcosystemDesc {
     /// Optional fields may be written bare (`knots_x: [...]`) or as `Some(...)`: RON's
     /// `implicit_some` extension is on.
     pub fn from_ron_str(text: &str) -> Result<Self, EcosystemError> {
-        let options = ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
-        let desc: Self = options.from_str(text)?;
+        let desc: Self = crate::ron_options().from_str(text)?;
         desc.validate()?;
         Ok(desc)
     }

@@ -186,7 +186,7 @@ impl TreeModel {
 
     /// Parses and validates a model saved with [`TreeModel::to_ron_string`].
     pub fn from_ron_str(text: &str) -> Result<Self, TreeFileError> {
-        let model: Self = ron::from_str(text)?;
+        let model: Self = crate::ron_options().from_str(text)?;
         model.validate()?;
         Ok(model)
     }

@@ -199,7 +199,7 @@ fn invalid(field: String, message: &str) -> SpeciesError {
 impl SpeciesDesc {
     /// Parses and validates a species description.
     pub fn from_ron_str(text: &str) -> Result<Self, SpeciesError> {
-        let desc: Self = ron::from_str(text)?;
+        let desc: Self = crate::ron_options().from_str(text)?;
         desc.validate()?;
         Ok(desc)
     }

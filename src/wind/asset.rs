@@ -68,9 +68,7 @@ fn invalid(field: String, message: impl Into<String>) -> SpringSetError {
 impl SpringSet {
     /// Parses and validates a spring set (optional fields may be written bare).
     pub fn from_ron_str(text: &str) -> Result<Self, SpringSetError> {
-        let options = ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
-        let set: Self = options.from_str(text)?;
+        let set: Self = crate::ron_options().from_str(text)?;
         set.validate()?;
         Ok(set)
     }
