@@ -142,3 +142,55 @@ fn a_species_that_fails_to_load_does_not_hold_the_forest_back() {
         "the two species that loaded are seen from above; the missing one is not"
     );
 }
+
+#[test]
+fn wind_moves_visible_trees_only_and_can_be_turned_off() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_sherwood::wind::{RingOffsetTable, WindSettings};
+
+    let mut app = app();
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(
+        std::time::Duration::from_millis(50),
+    ));
+    let handle = app
+        .world()
+        .resource::<AssetServer>()
+        .load("forests/default.ecosystem.ron");
+    app.world_mut().spawn(Forest(handle));
+    let view = Mat4::perspective_infinite_reverse_rh(1.0, 16.0 / 9.0, 0.1)
+        * Mat4::look_at_rh(
+            Vec3::new(100.0, 10.0, 100.0),
+            Vec3::new(200.0, 5.0, 100.0),
+            Vec3::Y,
+        );
+    app.world_mut()
+        .spawn(CullView(FrustumPlanes::from_clip_from_world(view)));
+    until_culled(&mut app);
+    for _ in 0..40 {
+        app.update(); // two seconds of wind
+    }
+    let culling = app.world().resource::<ForestCulling>();
+    let table = app.world().resource::<RingOffsetTable>();
+    assert_eq!(table.starts.len(), 601);
+    let moves = |i: usize| {
+        table.offsets[table.starts[i] as usize..table.starts[i + 1] as usize]
+            .iter()
+            .any(|o| o.length() > 1e-4)
+    };
+    let visible: Vec<bool> = (0..600)
+        .map(|i| {
+            culling.result.visibility[i] != bevy_sherwood::culling::InstanceVisibility::Invisible
+        })
+        .collect();
+    assert!(table.moved > 0);
+    for (i, _) in visible.iter().enumerate().filter(|(_, v)| !**v) {
+        assert!(!moves(i), "invisible instance {i} moved");
+    }
+    assert!((0..600).any(moves));
+
+    app.world_mut().resource_mut::<WindSettings>().enabled = false;
+    app.update();
+    let table = app.world().resource::<RingOffsetTable>();
+    assert_eq!(table.moved, 0);
+    assert!(table.offsets.iter().all(|o| *o == Vec3::ZERO));
+}

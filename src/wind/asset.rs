@@ -169,8 +169,8 @@ impl AssetLoader for SpringSetLoader {
     }
 }
 
-/// Registers spring-set assets. (The wind stage in `SherwoodSystems::Animate` comes with
-/// the wind issue.)
+/// Registers spring-set assets and runs the wind stage in `SherwoodSystems::Animate`
+/// (see [`WindSettings`](super::WindSettings) and [`RingOffsetTable`](super::RingOffsetTable)).
 #[derive(Default)]
 pub struct WindPlugin;
 
@@ -178,5 +178,6 @@ impl Plugin for WindPlugin {
     fn build(&self, app: &mut App) {
         app.init_asset::<SpringSet>()
             .register_asset_loader(SpringSetLoader);
+        super::plugin::build(app);
     }
 }

@@ -1,11 +1,13 @@
-//! Spring-driven wind (thesis chapter 5): springs, rings associated with springs, and
-//! the ring offsets of a moving tree. The ECS stage (spring-set assets, motion level of
-//! detail, the renderer's ring-offset table) comes with the wind stage.
+//! Spring-driven wind (thesis chapter 5): springs, rings associated with springs, the
+//! ring offsets of a moving tree, and the stage that computes them every frame into the
+//! [`RingOffsetTable`] the renderer applies.
 
 mod asset;
 mod motion;
+mod plugin;
 mod spring;
 
 pub use asset::{SpringSet, SpringSetError, SpringSetLoader, WindPlugin};
 pub use motion::{AssociationRule, RingMotion, associate, moved_bounds, ring_offsets};
+pub use plugin::{RingOffsetTable, WindSettings, WindView};
 pub use spring::{FixedStepper, GustDesc, Spring, SpringDesc, WindDesc};
