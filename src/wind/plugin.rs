@@ -34,8 +34,9 @@ impl Default for WindSettings {
     }
 }
 
-/// Where the camera is and how it projects, for the motion level of detail (put it on a
-/// camera; without one every visible tree moves).
+/// Where the camera is and how it projects, for the motion level of detail. Perspective
+/// 3D cameras get one automatically (with the `render` feature); without one every
+/// visible tree moves.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct WindView {
     /// Camera position, world space.
@@ -74,6 +75,42 @@ pub(super) fn build(app: &mut App) {
                 .chain()
                 .in_set(SherwoodSystems::Animate),
         );
+    #[cfg(feature = "render")]
+    app.add_systems(
+        PostUpdate,
+        update_wind_views.before(SherwoodSystems::Animate),
+    );
+}
+
+/// Keeps a [`WindView`] on every perspective 3D camera.
+#[cfg(feature = "render")]
+fn update_wind_views(
+    mut commands: Commands,
+    cameras: Query<
+        (
+            Entity,
+            &Camera,
+            &Projection,
+            &GlobalTransform,
+            Option<&WindView>,
+        ),
+        With<Camera3d>,
+    >,
+) {
+    for (entity, camera, projection, transform, current) in &cameras {
+        let (Projection::Perspective(perspective), Some(size)) =
+            (projection, camera.physical_viewport_size())
+        else {
+            continue;
+        };
+        let view = WindView {
+            position: transform.translation(),
+            focal_pixels: size.y as f32 / (2.0 * (perspective.fov * 0.5).tan()).max(1e-6),
+        };
+        if current != Some(&view) {
+            commands.entity(entity).insert(view);
+        }
+    }
 }
 
 fn load_default_set(mut settings: ResMut<WindSettings>, server: Res<AssetServer>) {
