@@ -161,16 +161,12 @@ impl FunkhouserSequin {
         self.increments.clear();
         for object in 0..problem.len() {
             upper_hull(problem.cheapest_first(object), budget, &mut self.hull);
-            let mut previous = 0.0;
-            for p in &self.hull {
-                self.increments.push(Increment {
-                    value: p.efficiency as f32,
-                    cost: (p.cost - previous) as f32,
-                    object: object as u32,
-                    level: p.level,
-                });
-                previous = p.cost;
-            }
+            self.increments.extend(self.hull.iter().map(|p| Increment {
+                value: p.efficiency as f32,
+                cost: p.delta_cost as f32,
+                object: object as u32,
+                level: p.level,
+            }));
         }
         let selection = &mut self.selection;
         let (costs, boundary) = (&mut self.bucket_costs, &mut self.boundary);

@@ -13,6 +13,10 @@ pub(crate) struct HullPoint {
     /// Δbenefit / Δcost from the previous hull point (from (0, 0) for the first);
     /// +∞ for a free representation with a benefit.
     pub efficiency: f64,
+    /// Cost added by stepping here from the previous hull point (from 0 for the first).
+    pub delta_cost: f64,
+    /// Benefit added by that step.
+    pub delta_benefit: f64,
 }
 
 /// Fills `hull` with the upper convex hull of the `(level, cost, benefit)` points costing
@@ -61,12 +65,15 @@ pub(crate) fn upper_hull(
             cost,
             benefit,
             efficiency: 0.0,
+            delta_cost: 0.0,
+            delta_benefit: 0.0,
         });
     }
     let mut previous = origin;
     for p in hull.iter_mut() {
         let (dc, db) = (p.cost - previous.0, p.benefit - previous.1);
         p.efficiency = if dc > 0.0 { db / dc } else { f64::INFINITY };
+        (p.delta_cost, p.delta_benefit) = (dc, db);
         previous = (p.cost, p.benefit);
     }
 }

@@ -133,11 +133,10 @@ pub fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
     let mut hull = Vec::new();
     for object in 0..problem.len() {
         upper_hull(problem.cheapest_first(object), budget, &mut hull);
-        let mut previous = (0.0, 0.0);
-        for p in &hull {
-            increments.push((p.efficiency, p.cost - previous.0, p.benefit - previous.1));
-            previous = (p.cost, p.benefit);
-        }
+        increments.extend(
+            hull.iter()
+                .map(|p| (p.efficiency, p.delta_cost, p.delta_benefit)),
+        );
     }
     increments.sort_by(|a, b| b.0.total_cmp(&a.0));
     let mut left = budget;

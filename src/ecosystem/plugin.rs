@@ -205,25 +205,11 @@ fn spawn_forests(
         #[cfg(feature = "render")]
         if let (Some(meshes), Some(materials)) = (meshes.as_mut(), materials.as_mut()) {
             let t = &layout.terrain;
-            let mesh = Mesh::new(
-                bevy::mesh::PrimitiveTopology::TriangleList,
-                bevy::asset::RenderAssetUsages::default(),
-            )
-            .with_inserted_attribute(
-                Mesh::ATTRIBUTE_POSITION,
-                t.mesh_positions()
-                    .iter()
-                    .map(Vec3::to_array)
-                    .collect::<Vec<_>>(),
-            )
-            .with_inserted_attribute(
-                Mesh::ATTRIBUTE_NORMAL,
-                t.mesh_normals()
-                    .iter()
-                    .map(Vec3::to_array)
-                    .collect::<Vec<_>>(),
-            )
-            .with_inserted_indices(bevy::mesh::Indices::U32(t.mesh_indices()));
+            let mesh = crate::tree::triangle_mesh(
+                &t.mesh_positions(),
+                &t.mesh_normals(),
+                &t.mesh_indices(),
+            );
             let ground = ecosystem
                 .materials
                 .get(&ecosystem.terrain_material)

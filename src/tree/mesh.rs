@@ -69,7 +69,8 @@ impl OwnedMeshData {
     }
 }
 
-fn triangle_mesh(positions: &[Vec3], normals: &[Vec3], indices: &[u32]) -> Mesh {
+/// A triangle-list Bevy mesh with positions, normals and 32-bit indices.
+pub(crate) fn triangle_mesh(positions: &[Vec3], normals: &[Vec3], indices: &[u32]) -> Mesh {
     Mesh::new(
         PrimitiveTopology::TriangleList,
         RenderAssetUsages::default(),

@@ -24,6 +24,8 @@ pub use gltf::{
 };
 pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
 #[cfg(feature = "render")]
+pub(crate) use mesh::triangle_mesh;
+#[cfg(feature = "render")]
 pub use mesh::{MeshConversionError, OwnedMeshData};
 pub use model::{
     BoundingSphere, Bounds, Leaf, LeafGroup, LinearRgb, NO_RING, Ring, Segments, TreeModel,
