@@ -4,7 +4,10 @@
 pub mod budget;
 pub mod cost;
 pub mod culling;
+pub mod draw;
 pub mod ecosystem;
+#[cfg(feature = "render")]
+pub mod render;
 pub mod tree;
 pub mod wind;
 
@@ -27,7 +30,10 @@ pub mod prelude {
         BudgetProblem, BudgetStats, BudgetStrategy, FrameTimeModel, Level, RobinHood, ValueFunction,
     };
     pub use crate::culling::{CullView, CullingDebug, CullingPlugin, ForestCulling};
+    pub use crate::draw::{LineRun, PointRun, TreeDrawList, TreeShading};
     pub use crate::ecosystem::{Ecosystem, EcosystemPlugin, Forest, TreeInstance};
+    #[cfg(feature = "render")]
+    pub use crate::render::{ForestHud, ForestHudPlugin, ForestRenderPlugin, ForestRenderStats};
     pub use crate::tree::{SpeciesDesc, TreeModel, TreePlugin};
     pub use crate::{SherwoodCorePlugin, SherwoodPlugins, SherwoodSystems};
 }
@@ -91,11 +97,14 @@ pub struct SherwoodPlugins;
 
 impl PluginGroup for SherwoodPlugins {
     fn build(self) -> PluginGroupBuilder {
-        PluginGroupBuilder::start::<Self>()
+        let group = PluginGroupBuilder::start::<Self>()
             .add(SherwoodCorePlugin)
             .add(tree::TreePlugin)
             .add(ecosystem::EcosystemPlugin)
             .add(culling::CullingPlugin)
-            .add(wind::WindPlugin)
+            .add(wind::WindPlugin);
+        #[cfg(feature = "render")]
+        let group = group.add(render::ForestRenderPlugin);
+        group
     }
 }

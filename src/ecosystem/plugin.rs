@@ -5,6 +5,8 @@ use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, LoadContext};
 use bevy::prelude::*;
 
+use crate::draw::{Shading, TreeShading};
+
 use super::desc::{EcosystemDesc, EcosystemError};
 use super::terrain::Terrain;
 use crate::tree::TreeModel;
@@ -170,6 +172,16 @@ fn spawn_forests(
         state.culling_depth = ecosystem.culling_depth;
         state.generation += 1;
         state.spawned = true;
+        let shadings: Vec<Shading> = ecosystem
+            .materials
+            .values()
+            .map(|m| Shading {
+                ambient: Vec3::from(m.ambient),
+                diffuse: Vec3::from(m.diffuse),
+                specular: Vec3::from(m.specular),
+                shininess: m.shininess,
+            })
+            .collect();
         for (index, instance) in layout.instances.iter().enumerate() {
             let (scale, rotation, translation) = instance.transform.to_scale_rotation_translation();
             let id = commands
@@ -191,6 +203,12 @@ fn spawn_forests(
                     },
                 ))
                 .id();
+            if let (Some(&trunk), Some(&leaves)) = (
+                shadings.get(instance.trunk_material),
+                shadings.get(instance.leaf_material),
+            ) {
+                commands.entity(id).insert(TreeShading { trunk, leaves });
+            }
             state.instances.push(id);
         }
         let terrain = commands

@@ -1,0 +1,520 @@
+//! What the forest render pass draws: the per-instance [`TreeDrawList`] that the LOD
+//! selection fills, and the pure packing of tree geometry and draw lists into the compact
+//! records the pass uploads (no GPU types here, so it is tested headless).
+//!
+//! The pass draws every primitive kind with one instanced draw per view. Each instance of
+//! that draw is a *chunk*: a fixed number of primitives taken from one contiguous range of
+//! one tree instance. A range is cut into as many chunks as it needs; the unused tail of
+//! the last chunk is degenerate. The number of draw calls therefore never depends on the
+//! number of trees, leaf groups or ranges.
+
+use core::ops::Range;
+
+use bevy::prelude::*;
+use bytemuck::{Pod, Zeroable};
+
+use crate::tree::{NO_RING, TreeModel};
+
+/// Triangles per triangle chunk.
+pub const TRIANGLES_PER_CHUNK: u32 = 32;
+/// Segments per line chunk.
+pub const LINES_PER_CHUNK: u32 = 16;
+/// Leaves per point chunk.
+pub const POINTS_PER_CHUNK: u32 = 32;
+
+/// A run of trunk segments drawn as screen-space lines of one width.
+#[derive(Clone, Debug, PartialEq, Eq, Reflect)]
+pub struct LineRun {
+    /// Segment indices (into [`TreeModel::segments`]).
+    pub segments: Range<u32>,
+    /// Line width in pixels (at least 1).
+    pub width: u32,
+}
+
+/// A run of leaves drawn as screen-space squares of one size.
+#[derive(Clone, Debug, PartialEq, Eq, Reflect)]
+pub struct PointRun {
+    /// Leaf indices (into [`TreeModel::leaves`]).
+    pub leaves: Range<u32>,
+    /// Square side in pixels (at least 1).
+    pub size: u32,
+}
+
+/// What the forest render pass draws of one tree instance this frame.
+///
+/// The LOD selection stage fills it; the pass only follows it. Ranges index the instance's
+/// [`TreeModel`]; ranges past the model's end are clipped to it. Segments are stored thin
+/// → thick, so the thick end of the trunk is the *tail* of the trunk triangles, and each
+/// leaf group's leaves are stored near → far from its ring, so a group's far leaves are
+/// the tail of [`LeafGroup::leaves`](crate::tree::LeafGroup::leaves).
+///
+/// A [`TreeInstance`](crate::ecosystem::TreeInstance) without this component is drawn at
+/// full detail; one whose list is empty is not drawn.
+#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct TreeDrawList {
+    /// Trunk triangles drawn lit, a range of triangle indices into
+    /// [`TreeModel::trunk_indices`] (triangle `t` is indices `3t..3t + 3`).
+    pub trunk_triangles: Range<u32>,
+    /// Trunk segments drawn as lines, flat in the bark colour.
+    pub trunk_lines: Vec<LineRun>,
+    /// Leaves drawn as lit, two-sided triangles: ranges of leaf indices.
+    pub leaf_triangles: Vec<Range<u32>>,
+    /// Leaves drawn as lit points.
+    pub leaf_points: Vec<PointRun>,
+}
+
+impl TreeDrawList {
+    /// Everything as triangles: the full-detail representation.
+    pub fn full(model: &TreeModel) -> Self {
+        Self {
+            trunk_triangles: 0..model.trunk_triangle_count() as u32,
+            trunk_lines: Vec::new(),
+            leaf_triangles: core::iter::once(0..model.leaves.len() as u32).collect(),
+            leaf_points: Vec::new(),
+        }
+    }
+
+    /// Draws nothing.
+    pub fn clear(&mut self) {
+        self.trunk_triangles = 0..0;
+        self.trunk_lines.clear();
+        self.leaf_triangles.clear();
+        self.leaf_points.clear();
+    }
+
+    /// Whether it draws nothing at all.
+    pub fn is_empty(&self) -> bool {
+        self.trunk_triangles.is_empty()
+            && self.trunk_lines.iter().all(|r| r.segments.is_empty())
+            && self.leaf_triangles.iter().all(Range::is_empty)
+            && self.leaf_points.iter().all(|r| r.leaves.is_empty())
+    }
+
+    /// How many primitives it draws of `model` (ranges clipped to the model).
+    pub fn counts(&self, model: &TreeModel) -> PrimitiveCounts {
+        let trunk = clip(&self.trunk_triangles, model.trunk_triangle_count() as u32);
+        let segments = model.segments.len() as u32;
+        let leaves = model.leaves.len() as u32;
+        let leaf_triangles: u32 = self
+            .leaf_triangles
+            .iter()
+            .map(|r| {
+                let r = clip(r, leaves);
+                model.leaves[r.start as usize..r.end as usize]
+                    .iter()
+                    .map(|l| l.triangles.len() as u32)
+                    .sum::<u32>()
+            })
+            .sum();
+        PrimitiveCounts {
+            triangles: u64::from(trunk.len() as u32 + leaf_triangles),
+            lines: self
+                .trunk_lines
+                .iter()
+                .map(|r| u64::from(clip(&r.segments, segments).len() as u32))
+                .sum(),
+            points: self
+                .leaf_points
+                .iter()
+                .map(|r| u64::from(clip(&r.leaves, leaves).len() as u32))
+                .sum(),
+        }
+    }
+}
+
+/// Primitives drawn, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
+pub struct PrimitiveCounts {
+    /// Triangles (trunk and leaves).
+    pub triangles: u64,
+    /// Screen-space lines.
+    pub lines: u64,
+    /// Screen-space points.
+    pub points: u64,
+}
+
+impl core::ops::AddAssign for PrimitiveCounts {
+    fn add_assign(&mut self, other: Self) {
+        self.triangles += other.triangles;
+        self.lines += other.lines;
+        self.points += other.points;
+    }
+}
+
+/// Blinn–Phong material of one part of a tree, in linear RGB.
+#[derive(Clone, Copy, Debug, PartialEq, Reflect)]
+pub struct Shading {
+    /// Colour without light.
+    pub ambient: Vec3,
+    /// Colour under full light (also the flat colour of lines).
+    pub diffuse: Vec3,
+    /// Highlight colour.
+    pub specular: Vec3,
+    /// Highlight exponent.
+    pub shininess: f32,
+}
+
+impl Shading {
+    /// A plain colour: ambient a quarter of it, no highlight.
+    pub fn from_color(color: [f32; 3]) -> Self {
+        let diffuse = Vec3::from(color);
+        Self {
+            ambient: diffuse * 0.25,
+            diffuse,
+            specular: Vec3::ZERO,
+            shininess: 1.0,
+        }
+    }
+}
+
+/// Materials of a tree instance's trunk and leaves. Instances without it use their
+/// model's bark and leaf colours.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component)]
+pub struct TreeShading {
+    /// Trunk triangles and lines.
+    pub trunk: Shading,
+    /// Leaf triangles and points.
+    pub leaves: Shading,
+}
+
+impl TreeShading {
+    /// The model's own bark and leaf colours.
+    pub fn of_model(model: &TreeModel) -> Self {
+        Self {
+            trunk: Shading::from_color(model.bark_color),
+            leaves: Shading::from_color(model.leaf_color),
+        }
+    }
+}
+
+fn clip(range: &Range<u32>, len: u32) -> Range<u32> {
+    let end = range.end.min(len);
+    range.start.min(end)..end
+}
+
+/// One vertex of the packed geometry (trunk and leaves alike).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuVertex {
+    /// Model-space position.
+    pub position: [f32; 3],
+    /// The ring whose wind offset moves it ([`NO_RING`]: none).
+    pub ring: u32,
+    /// Model-space normal.
+    pub normal: [f32; 3],
+    /// Padding to 16-byte alignment.
+    pub pad: u32,
+}
+
+/// One line (a trunk segment: its two ring centres) or one point (a leaf: its centre and
+/// normal) of the packed geometry.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPrimitive {
+    /// Line: lower end. Point: centre.
+    pub a: [f32; 3],
+    /// Ring moving `a`.
+    pub ring_a: u32,
+    /// Line: upper end. Point: normal.
+    pub b: [f32; 3],
+    /// Line: ring moving `b`. Point: unused.
+    pub ring_b: u32,
+}
+
+/// Where one model's geometry sits in a [`GeometryAtlas`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ModelSlot {
+    /// First trunk triangle (in triangles into [`GeometryAtlas::indices`]).
+    pub trunk_triangles: u32,
+    /// Trunk triangle count.
+    pub trunk_triangle_count: u32,
+    /// First leaf triangle, in triangles.
+    pub leaf_triangles: u32,
+    /// Prefix over the model's leaves of their triangle counts (length leaves + 1): leaves
+    /// `a..b` are triangles `leaf_triangles + prefix[a] .. leaf_triangles + prefix[b]`.
+    pub leaf_triangle_prefix: Vec<u32>,
+    /// First segment line in [`GeometryAtlas::primitives`].
+    pub lines: u32,
+    /// Segment count.
+    pub line_count: u32,
+    /// First leaf point in [`GeometryAtlas::primitives`].
+    pub points: u32,
+    /// Leaf count.
+    pub point_count: u32,
+    /// Ring count (the length of its slice of a ring-offset table).
+    pub rings: u32,
+}
+
+impl ModelSlot {
+    /// How many primitives `list` draws of this model (ranges clipped to the model), in
+    /// time proportional to the number of ranges.
+    pub fn counts(&self, list: &TreeDrawList) -> PrimitiveCounts {
+        let len = |r: Range<u32>| u64::from(r.end - r.start);
+        PrimitiveCounts {
+            triangles: len(clip(&list.trunk_triangles, self.trunk_triangle_count))
+                + list
+                    .leaf_triangles
+                    .iter()
+                    .map(|r| len(self.leaf_triangle_range(r)))
+                    .sum::<u64>(),
+            lines: list
+                .trunk_lines
+                .iter()
+                .map(|r| len(clip(&r.segments, self.line_count)))
+                .sum(),
+            points: list
+                .leaf_points
+                .iter()
+                .map(|r| len(clip(&r.leaves, self.point_count)))
+                .sum(),
+        }
+    }
+
+    fn leaf_triangle_range(&self, leaves: &Range<u32>) -> Range<u32> {
+        let r = clip(leaves, self.point_count);
+        self.leaf_triangles + self.leaf_triangle_prefix[r.start as usize]
+            ..self.leaf_triangles + self.leaf_triangle_prefix[r.end as usize]
+    }
+}
+
+/// Every tree model's geometry packed into three arrays, uploaded once and shared by all
+/// instances: vertices, triangle indices (absolute into `vertices`), and line/point
+/// primitives. Leaf triangles are stored leaf after leaf, so a range of leaves is a range
+/// of triangles.
+#[derive(Clone, Debug, Default)]
+pub struct GeometryAtlas {
+    /// Packed vertices.
+    pub vertices: Vec<GpuVertex>,
+    /// Triangle indices into `vertices`, three per triangle.
+    pub indices: Vec<u32>,
+    /// Segment lines and leaf points.
+    pub primitives: Vec<GpuPrimitive>,
+}
+
+impl GeometryAtlas {
+    /// Appends a model and returns where it went.
+    pub fn push(&mut self, model: &TreeModel) -> ModelSlot {
+        let first_triangle = |atlas: &Self| (atlas.indices.len() / 3) as u32;
+        let base = self.vertices.len() as u32;
+        self.vertices.extend(
+            model
+                .trunk_positions
+                .iter()
+                .zip(&model.trunk_normals)
+                .enumerate()
+                .map(|(i, (p, n))| GpuVertex {
+                    position: p.to_array(),
+                    ring: model.trunk_vertex_ring.get(i).copied().unwrap_or(NO_RING),
+                    normal: n.to_array(),
+                    pad: 0,
+                }),
+        );
+        let trunk_triangles = first_triangle(self);
+        self.indices
+            .extend(model.trunk_indices.iter().map(|&i| base + i));
+
+        let leaf_base = self.vertices.len() as u32;
+        let leaf_ring = |v: usize| {
+            let leaf = *model.leaf_vertex_leaf.get(v)? as usize;
+            let group = model.leaves.get(leaf)?.group as usize;
+            Some(model.leaf_groups.get(group)?.ring)
+        };
+        self.vertices.extend(
+            model
+                .leaf_positions
+                .iter()
+                .zip(&model.leaf_normals)
+                .enumerate()
+                .map(|(i, (p, n))| GpuVertex {
+                    position: p.to_array(),
+                    ring: leaf_ring(i).unwrap_or(NO_RING),
+                    normal: n.to_array(),
+                    pad: 0,
+                }),
+        );
+        let leaf_triangles = first_triangle(self);
+        let mut leaf_triangle_prefix = Vec::with_capacity(model.leaves.len() + 1);
+        leaf_triangle_prefix.push(0);
+        for leaf in &model.leaves {
+            let indices = &model.leaf_indices[leaf.triangles.start as usize * 3..];
+            let indices = &indices[..leaf.triangles.len() * 3];
+            self.indices.extend(indices.iter().map(|&i| leaf_base + i));
+            leaf_triangle_prefix.push(first_triangle(self) - leaf_triangles);
+        }
+
+        let lines = self.primitives.len() as u32;
+        self.primitives
+            .extend(
+                model
+                    .segments
+                    .line
+                    .iter()
+                    .zip(&model.segments.ring)
+                    .map(|(line, &ring)| GpuPrimitive {
+                        a: line[0].to_array(),
+                        ring_a: model.rings.get(ring as usize).map_or(NO_RING, |r| r.parent),
+                        b: line[1].to_array(),
+                        ring_b: ring,
+                    }),
+            );
+        let points = self.primitives.len() as u32;
+        self.primitives.extend(model.leaves.iter().map(|leaf| {
+            GpuPrimitive {
+                a: leaf.center.to_array(),
+                ring_a: model
+                    .leaf_groups
+                    .get(leaf.group as usize)
+                    .map_or(NO_RING, |g| g.ring),
+                b: leaf.normal.to_array(),
+                ring_b: NO_RING,
+            }
+        }));
+        ModelSlot {
+            trunk_triangles,
+            trunk_triangle_count: model.trunk_triangle_count() as u32,
+            leaf_triangles,
+            leaf_triangle_prefix,
+            lines,
+            line_count: model.segments.len() as u32,
+            points,
+            point_count: model.leaves.len() as u32,
+            rings: model.rings.len() as u32,
+        }
+    }
+}
+
+/// A fixed-size piece of one range: `count` primitives from `first` (absolute), of tree
+/// instance `instance`; `param` is the line width or point size in pixels, or for
+/// triangles 0 (trunk) or 1 (leaves).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuChunk {
+    /// Index into the frame's instance records.
+    pub instance: u32,
+    /// First primitive (triangle index or primitive index).
+    pub first: u32,
+    /// Primitives in this chunk, at most the kind's chunk size.
+    pub count: u32,
+    /// Width, size or part.
+    pub param: u32,
+}
+
+/// `param` of trunk triangle chunks.
+pub const PART_TRUNK: u32 = 0;
+/// `param` of leaf triangle chunks.
+pub const PART_LEAVES: u32 = 1;
+
+/// The primitive kinds of the pass, in draw order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum PrimitiveKind {
+    /// Lit trunk triangles, back faces culled.
+    TrunkTriangles,
+    /// Lit two-sided leaf triangles.
+    LeafTriangles,
+    /// Flat screen-space lines.
+    Lines,
+    /// Lit screen-space squares.
+    Points,
+}
+
+impl PrimitiveKind {
+    /// Every kind, in draw order.
+    pub const ALL: [Self; 4] = [
+        Self::TrunkTriangles,
+        Self::LeafTriangles,
+        Self::Lines,
+        Self::Points,
+    ];
+
+    /// Primitives per chunk.
+    pub const fn per_chunk(self) -> u32 {
+        match self {
+            Self::TrunkTriangles | Self::LeafTriangles => TRIANGLES_PER_CHUNK,
+            Self::Lines => LINES_PER_CHUNK,
+            Self::Points => POINTS_PER_CHUNK,
+        }
+    }
+
+    /// Vertices the pass emits per chunk (3 per triangle, 6 per line or point quad).
+    pub const fn vertices_per_chunk(self) -> u32 {
+        match self {
+            Self::TrunkTriangles | Self::LeafTriangles => 3 * TRIANGLES_PER_CHUNK,
+            Self::Lines => 6 * LINES_PER_CHUNK,
+            Self::Points => 6 * POINTS_PER_CHUNK,
+        }
+    }
+}
+
+/// A frame's chunks, per primitive kind.
+#[derive(Clone, Debug, Default)]
+pub struct FrameChunks {
+    /// Per kind in [`PrimitiveKind::ALL`] order.
+    pub kinds: [Vec<GpuChunk>; 4],
+}
+
+impl FrameChunks {
+    /// Empties every kind, keeping the allocations.
+    pub fn clear(&mut self) {
+        self.kinds.iter_mut().for_each(Vec::clear);
+    }
+
+    /// The chunks of one kind.
+    pub fn of(&self, kind: PrimitiveKind) -> &[GpuChunk] {
+        &self.kinds[kind as usize]
+    }
+
+    /// Appends the chunks of instance `instance` drawing `list` of the model at `slot`.
+    pub fn push(&mut self, instance: u32, slot: &ModelSlot, list: &TreeDrawList) {
+        let trunk = clip(&list.trunk_triangles, slot.trunk_triangle_count);
+        self.push_range(
+            PrimitiveKind::TrunkTriangles,
+            instance,
+            slot.trunk_triangles + trunk.start..slot.trunk_triangles + trunk.end,
+            PART_TRUNK,
+        );
+        for leaves in &list.leaf_triangles {
+            self.push_range(
+                PrimitiveKind::LeafTriangles,
+                instance,
+                slot.leaf_triangle_range(leaves),
+                PART_LEAVES,
+            );
+        }
+        for run in &list.trunk_lines {
+            let r = clip(&run.segments, slot.line_count);
+            self.push_range(
+                PrimitiveKind::Lines,
+                instance,
+                slot.lines + r.start..slot.lines + r.end,
+                run.width.max(1),
+            );
+        }
+        for run in &list.leaf_points {
+            let r = clip(&run.leaves, slot.point_count);
+            self.push_range(
+                PrimitiveKind::Points,
+                instance,
+                slot.points + r.start..slot.points + r.end,
+                run.size.max(1),
+            );
+        }
+    }
+
+    fn push_range(&mut self, kind: PrimitiveKind, instance: u32, range: Range<u32>, param: u32) {
+        let per_chunk = kind.per_chunk();
+        let out = &mut self.kinds[kind as usize];
+        let mut first = range.start;
+        while first < range.end {
+            let count = (range.end - first).min(per_chunk);
+            out.push(GpuChunk {
+                instance,
+                first,
+                count,
+                param,
+            });
+            first += count;
+        }
+    }
+}

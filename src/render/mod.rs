@@ -1,0 +1,666 @@
+//! The forest render pass: trunk triangles, screen-space lines of integer widths, leaf
+//! points of integer sizes and leaf triangles, drawn from each instance's
+//! [`TreeDrawList`] with four instanced draws per view (see [`crate::draw`]).
+//!
+//! The pass is a system in Bevy's `Core3d` schedule, after the main opaque pass, so it
+//! depth-tests against Bevy's own opaque geometry (reverse-Z) and writes depth for what
+//! comes after. Geometry of every [`TreeModel`] lives on the GPU once (re-packed when a
+//! model is added, changed or removed); per frame only instance records, chunk records and
+//! ring offsets are uploaded.
+//!
+//! Shading is Blinn–Phong in linear colour with the first [`DirectionalLight`]'s
+//! direction and colour (its illuminance is ignored: the light has unit strength), and
+//! each instance's [`TreeShading`] (or its model's colours). It is not physically based
+//! and ignores shadows, exposure and tonemapping.
+//!
+//! The [`TreeDrawList`] describes one selection per instance, shared by every view: with
+//! several cameras each view draws the same ranges, with its own line and point widths in
+//! its own pixels.
+
+mod hud;
+
+use std::sync::{Arc, Mutex};
+
+use bevy::asset::{embedded_asset, load_embedded_asset};
+use bevy::camera::{MainPassResolutionOverride, Viewport};
+use bevy::core_pipeline::{Core3dSystems, core_3d::main_opaque_pass_3d, schedule::Core3d};
+use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
+use bevy::ecs::entity::EntityHashMap;
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use bevy::render::{
+    Extract, ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems,
+    camera::ExtractedCamera,
+    diagnostic::RecordDiagnostics,
+    render_resource::{
+        BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries,
+        BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction,
+        DepthStencilState, Face, FragmentState, MultisampleState, PipelineCache, PrimitiveState,
+        RawBufferVec, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
+        SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureFormat, VertexState,
+        binding_types::{storage_buffer_read_only_sized, uniform_buffer, uniform_buffer_sized},
+    },
+    renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery},
+    view::{
+        ExtractedView, Msaa, ViewDepthTexture, ViewTarget, ViewUniform, ViewUniformOffset,
+        ViewUniforms,
+    },
+};
+use bytemuck::{Pod, Zeroable};
+
+pub use hud::{ForestHud, ForestHudPlugin};
+
+use crate::culling::ForestCulling;
+use crate::draw::{
+    FrameChunks, GeometryAtlas, ModelSlot, PrimitiveCounts, PrimitiveKind, TreeDrawList,
+    TreeShading,
+};
+use crate::ecosystem::TreeInstance;
+use crate::tree::{NO_RING, TreeModel};
+use crate::wind::RingOffsetTable;
+
+/// Name of the pass in Bevy's render diagnostics: its GPU time is published as
+/// `render/sherwood_forest/elapsed_gpu` when `RenderDiagnosticsPlugin` is present.
+pub const PASS_NAME: &str = "sherwood_forest";
+
+/// Draws tree instances with the forest render pass. Part of [`SherwoodPlugins`](crate::SherwoodPlugins)
+/// with the `render` feature; without Bevy's render app (a headless app) it only keeps
+/// [`ForestRenderStats`].
+#[derive(Default)]
+pub struct ForestRenderPlugin;
+
+/// What the forest pass drew in the last rendered frame (one frame late: it comes back
+/// from the render world).
+#[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource, Default)]
+pub struct ForestRenderStats {
+    /// Tree instances with something to draw.
+    pub instances: u32,
+    /// Primitives drawn per view.
+    pub counts: PrimitiveCounts,
+    /// Chunks per primitive kind (trunk triangles, leaf triangles, lines, points).
+    pub chunks: [u32; 4],
+    /// Draw calls per view (at most one per primitive kind).
+    pub draw_calls_per_view: u32,
+    /// Views the pass drew into.
+    pub views: u32,
+    /// GPU time of the pass in milliseconds, summed over views, when Bevy's
+    /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries.
+    pub gpu_time_ms: Option<f64>,
+}
+
+/// Bumped whenever a tree model is added, changed or removed, so the render world
+/// re-packs the shared geometry.
+#[derive(Resource, Default)]
+struct GeometryVersion(u64);
+
+/// Shared between the worlds: stats written by the render world, read by the main world.
+#[derive(Resource, Clone, Default)]
+struct StatsMailbox(Arc<Mutex<ForestRenderStats>>);
+
+impl Plugin for ForestRenderPlugin {
+    fn build(&self, app: &mut App) {
+        embedded_asset!(app, "forest.wgsl");
+        let mailbox = StatsMailbox::default();
+        app.register_type::<TreeDrawList>()
+            .register_type::<TreeShading>()
+            .register_type::<ForestRenderStats>()
+            .init_resource::<ForestRenderStats>()
+            .init_resource::<GeometryVersion>()
+            .insert_resource(mailbox.clone())
+            .add_systems(PostUpdate, bump_geometry_version)
+            .add_systems(PreUpdate, receive_stats);
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
+            return;
+        };
+        render_app
+            .insert_resource(mailbox)
+            .init_resource::<ForestFrame>()
+            .init_resource::<ForestBuffers>()
+            .init_resource::<SpecializedRenderPipelines<ForestPipeline>>()
+            .add_systems(RenderStartup, init_pipeline)
+            .add_systems(ExtractSchedule, extract_forest)
+            .add_systems(
+                Render,
+                (
+                    specialize_pipelines.in_set(RenderSystems::Queue),
+                    upload_buffers.in_set(RenderSystems::PrepareResources),
+                    create_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                ),
+            )
+            .add_systems(
+                Core3d,
+                draw_forest
+                    .after(main_opaque_pass_3d)
+                    .in_set(Core3dSystems::MainPass),
+            );
+    }
+}
+
+fn bump_geometry_version(
+    mut events: MessageReader<AssetEvent<TreeModel>>,
+    mut version: ResMut<GeometryVersion>,
+) {
+    let mut changed = false;
+    for event in events.read() {
+        changed |= !matches!(event, AssetEvent::Unused { .. });
+    }
+    if changed {
+        version.0 += 1;
+    }
+}
+
+fn receive_stats(
+    mailbox: Res<StatsMailbox>,
+    mut stats: ResMut<ForestRenderStats>,
+    store: Option<Res<DiagnosticsStore>>,
+) {
+    let Ok(latest) = mailbox.0.lock() else {
+        return;
+    };
+    let mut latest = latest.clone();
+    const GPU_TIME: DiagnosticPath =
+        DiagnosticPath::const_new("render/sherwood_forest/elapsed_gpu");
+    latest.gpu_time_ms = store
+        .as_deref()
+        .and_then(|s| s.get(&GPU_TIME))
+        .and_then(bevy::diagnostic::Diagnostic::value);
+    stats.set_if_neq(latest);
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Default, Pod, Zeroable)]
+struct GpuShading {
+    ambient_shininess: [f32; 4],
+    diffuse: [f32; 4],
+    specular: [f32; 4],
+}
+
+impl From<crate::draw::Shading> for GpuShading {
+    fn from(s: crate::draw::Shading) -> Self {
+        Self {
+            ambient_shininess: s.ambient.extend(s.shininess).to_array(),
+            diffuse: s.diffuse.extend(1.0).to_array(),
+            specular: s.specular.extend(0.0).to_array(),
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Default, Pod, Zeroable)]
+struct GpuInstance {
+    rows: [[f32; 4]; 3],
+    trunk: GpuShading,
+    leaves: GpuShading,
+    ring_base: u32,
+    pad: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Default, Pod, Zeroable)]
+struct GpuLight {
+    direction: [f32; 4],
+    color: [f32; 4],
+}
+
+/// The frame's records, filled during extraction.
+#[derive(Resource, Default)]
+struct ForestFrame {
+    geometry_version: Option<u64>,
+    atlas: GeometryAtlas,
+    atlas_dirty: bool,
+    slots: HashMap<AssetId<TreeModel>, ModelSlot>,
+    instances: Vec<GpuInstance>,
+    chunks: FrameChunks,
+    ring_offsets: Vec<[f32; 4]>,
+    light: GpuLight,
+    counts: PrimitiveCounts,
+}
+
+#[expect(
+    clippy::type_complexity,
+    reason = "an extraction query names what it reads"
+)]
+fn extract_forest(
+    mut frame: ResMut<ForestFrame>,
+    version: Extract<Res<GeometryVersion>>,
+    models: Extract<Res<Assets<TreeModel>>>,
+    trees: Extract<
+        Query<(
+            Entity,
+            &TreeInstance,
+            &GlobalTransform,
+            Option<&TreeDrawList>,
+            Option<&TreeShading>,
+        )>,
+    >,
+    culling: Extract<Option<Res<ForestCulling>>>,
+    offsets: Extract<Option<Res<RingOffsetTable>>>,
+    lights: Extract<Query<(&DirectionalLight, &GlobalTransform)>>,
+    mut ring_index: Local<EntityHashMap<u32>>,
+) {
+    let frame = &mut *frame;
+    if frame.geometry_version != Some(version.0) {
+        frame.geometry_version = Some(version.0);
+        frame.atlas = GeometryAtlas::default();
+        frame.slots = models
+            .iter()
+            .map(|(id, model)| (id, frame.atlas.push(model)))
+            .collect();
+        frame.atlas_dirty = true;
+    }
+    frame.light = lights.iter().next().map_or(
+        GpuLight {
+            direction: Vec3::new(0.3, 1.0, 0.2).normalize().extend(0.0).to_array(),
+            color: [1.0; 4],
+        },
+        |(light, transform)| GpuLight {
+            direction: transform.back().extend(0.0).to_array(),
+            color: light.color.to_linear().to_f32_array(),
+        },
+    );
+
+    // Ring offsets are kept in the culling order; only instances that moved get a slice.
+    ring_index.clear();
+    let moving = offsets
+        .as_deref()
+        .filter(|t| t.moved > 0)
+        .zip(culling.as_deref());
+    if let Some((_, culling)) = moving {
+        ring_index.extend(
+            culling
+                .entities
+                .iter()
+                .enumerate()
+                .map(|(i, &e)| (e, i as u32)),
+        );
+    }
+
+    frame.instances.clear();
+    frame.chunks.clear();
+    frame.ring_offsets.clear();
+    frame.counts = PrimitiveCounts::default();
+    let mut full;
+    for (entity, instance, transform, list, shading) in &trees {
+        let (Some(slot), Some(model)) = (
+            frame.slots.get(&instance.model.id()),
+            models.get(&instance.model),
+        ) else {
+            continue;
+        };
+        let list = match list {
+            Some(list) => list,
+            None => {
+                full = TreeDrawList::full(model);
+                &full
+            }
+        };
+        if list.is_empty() {
+            continue;
+        }
+        let index = frame.instances.len() as u32;
+        let mut ring_base = NO_RING;
+        if let (Some((table, _)), Some(&i)) = (moving, ring_index.get(&entity)) {
+            let (start, end) = (table.starts[i as usize], table.starts[i as usize + 1]);
+            let slice = &table.offsets[start as usize..end as usize];
+            if slice.len() == slot.rings as usize && slice.iter().any(|o| *o != Vec3::ZERO) {
+                ring_base = frame.ring_offsets.len() as u32;
+                frame
+                    .ring_offsets
+                    .extend(slice.iter().map(|o| o.extend(0.0).to_array()));
+            }
+        }
+        let affine = transform.affine();
+        let (m, t) = (affine.matrix3, affine.translation);
+        let shading = shading
+            .copied()
+            .unwrap_or_else(|| TreeShading::of_model(model));
+        frame.instances.push(GpuInstance {
+            rows: [
+                [m.x_axis.x, m.y_axis.x, m.z_axis.x, t.x],
+                [m.x_axis.y, m.y_axis.y, m.z_axis.y, t.y],
+                [m.x_axis.z, m.y_axis.z, m.z_axis.z, t.z],
+            ],
+            trunk: shading.trunk.into(),
+            leaves: shading.leaves.into(),
+            ring_base,
+            pad: [0; 3],
+        });
+        frame.chunks.push(index, slot, list);
+        frame.counts += slot.counts(list);
+    }
+}
+
+/// GPU copies of the frame's records and the shared geometry.
+#[derive(Resource)]
+struct ForestBuffers {
+    vertices: RawBufferVec<crate::draw::GpuVertex>,
+    indices: RawBufferVec<u32>,
+    primitives: RawBufferVec<crate::draw::GpuPrimitive>,
+    instances: RawBufferVec<GpuInstance>,
+    chunks: RawBufferVec<crate::draw::GpuChunk>,
+    ring_offsets: RawBufferVec<[f32; 4]>,
+    light: RawBufferVec<GpuLight>,
+    /// First chunk of each kind in `chunks`, and the end.
+    kind_starts: [u32; 5],
+}
+
+impl Default for ForestBuffers {
+    fn default() -> Self {
+        let storage = || BufferUsages::STORAGE | BufferUsages::COPY_DST;
+        Self {
+            vertices: RawBufferVec::new(storage()),
+            indices: RawBufferVec::new(storage()),
+            primitives: RawBufferVec::new(storage()),
+            instances: RawBufferVec::new(storage()),
+            chunks: RawBufferVec::new(storage()),
+            ring_offsets: RawBufferVec::new(storage()),
+            light: RawBufferVec::new(BufferUsages::UNIFORM | BufferUsages::COPY_DST),
+            kind_starts: [0; 5],
+        }
+    }
+}
+
+/// Storage buffers may not be empty: pad with one default element.
+fn fill<T: Pod + Default>(buffer: &mut RawBufferVec<T>, values: &[T]) {
+    let out = buffer.values_mut();
+    out.clear();
+    out.extend_from_slice(values);
+    if out.is_empty() {
+        out.push(T::default());
+    }
+}
+
+fn upload_buffers(
+    mut frame: ResMut<ForestFrame>,
+    mut buffers: ResMut<ForestBuffers>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    mailbox: Res<StatsMailbox>,
+    views: Query<(), With<ForestViewPipelines>>,
+) {
+    let frame = &mut *frame;
+    let buffers = &mut *buffers;
+    if frame.atlas_dirty || buffers.vertices.buffer().is_none() {
+        fill(&mut buffers.vertices, &frame.atlas.vertices);
+        fill(&mut buffers.indices, &frame.atlas.indices);
+        fill(&mut buffers.primitives, &frame.atlas.primitives);
+        buffers.vertices.write_buffer(&device, &queue);
+        buffers.indices.write_buffer(&device, &queue);
+        buffers.primitives.write_buffer(&device, &queue);
+        frame.atlas_dirty = false;
+    }
+    fill(&mut buffers.instances, &frame.instances);
+    fill(&mut buffers.ring_offsets, &frame.ring_offsets);
+    fill(&mut buffers.light, &[frame.light]);
+    let chunks = buffers.chunks.values_mut();
+    chunks.clear();
+    for (k, kind) in PrimitiveKind::ALL.into_iter().enumerate() {
+        buffers.kind_starts[k] = chunks.len() as u32;
+        chunks.extend_from_slice(frame.chunks.of(kind));
+    }
+    buffers.kind_starts[4] = chunks.len() as u32;
+    if chunks.is_empty() {
+        chunks.push(crate::draw::GpuChunk::default());
+    }
+    buffers.instances.write_buffer(&device, &queue);
+    buffers.ring_offsets.write_buffer(&device, &queue);
+    buffers.light.write_buffer(&device, &queue);
+    buffers.chunks.write_buffer(&device, &queue);
+
+    if let Ok(mut stats) = mailbox.0.lock() {
+        let s = buffers.kind_starts;
+        *stats = ForestRenderStats {
+            instances: frame.instances.len() as u32,
+            counts: frame.counts,
+            chunks: [s[1] - s[0], s[2] - s[1], s[3] - s[2], s[4] - s[3]],
+            draw_calls_per_view: s.windows(2).filter(|w| w[1] > w[0]).count() as u32,
+            views: views.iter().count() as u32,
+            gpu_time_ms: None,
+        };
+    }
+}
+
+#[derive(Resource)]
+struct ForestPipeline {
+    view_layout: BindGroupLayoutDescriptor,
+    geometry_layout: BindGroupLayoutDescriptor,
+    frame_layout: BindGroupLayoutDescriptor,
+    shader: Handle<Shader>,
+}
+
+fn init_pipeline(mut commands: Commands, asset_server: Res<AssetServer>) {
+    let storage = || storage_buffer_read_only_sized(false, None);
+    commands.insert_resource(ForestPipeline {
+        view_layout: BindGroupLayoutDescriptor::new(
+            "sherwood_forest_view",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::VERTEX_FRAGMENT,
+                (
+                    uniform_buffer::<ViewUniform>(true),
+                    uniform_buffer_sized(false, None),
+                ),
+            ),
+        ),
+        geometry_layout: BindGroupLayoutDescriptor::new(
+            "sherwood_forest_geometry",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::VERTEX,
+                (storage(), storage(), storage()),
+            ),
+        ),
+        frame_layout: BindGroupLayoutDescriptor::new(
+            "sherwood_forest_frame",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::VERTEX_FRAGMENT,
+                (storage(), storage(), storage()),
+            ),
+        ),
+        shader: load_embedded_asset!(asset_server.as_ref(), "forest.wgsl"),
+    });
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+struct PipelineKey {
+    kind: PrimitiveKind,
+    samples: u32,
+    format: TextureFormat,
+}
+
+impl SpecializedRenderPipeline for ForestPipeline {
+    type Key = PipelineKey;
+
+    fn specialize(&self, key: Self::Key) -> RenderPipelineDescriptor {
+        let (vertex, fragment, cull_mode) = match key.kind {
+            PrimitiveKind::TrunkTriangles => ("vs_triangles", "fs_lit", Some(Face::Back)),
+            PrimitiveKind::LeafTriangles => ("vs_triangles", "fs_lit", None),
+            PrimitiveKind::Lines => ("vs_lines", "fs_flat", None),
+            PrimitiveKind::Points => ("vs_points", "fs_flat", None),
+        };
+        RenderPipelineDescriptor {
+            label: Some(format!("sherwood_forest_{:?}", key.kind).into()),
+            layout: vec![
+                self.view_layout.clone(),
+                self.geometry_layout.clone(),
+                self.frame_layout.clone(),
+            ],
+            vertex: VertexState {
+                shader: self.shader.clone(),
+                entry_point: Some(vertex.into()),
+                ..default()
+            },
+            fragment: Some(FragmentState {
+                shader: self.shader.clone(),
+                entry_point: Some(fragment.into()),
+                targets: vec![Some(ColorTargetState {
+                    format: key.format,
+                    blend: None,
+                    write_mask: ColorWrites::ALL,
+                })],
+                ..default()
+            }),
+            primitive: PrimitiveState {
+                cull_mode,
+                ..default()
+            },
+            depth_stencil: Some(DepthStencilState {
+                format: bevy::core_pipeline::core_3d::CORE_3D_DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(CompareFunction::GreaterEqual),
+                stencil: default(),
+                bias: default(),
+            }),
+            multisample: MultisampleState {
+                count: key.samples,
+                ..default()
+            },
+            ..default()
+        }
+    }
+}
+
+/// The pass's pipelines for one view, per primitive kind.
+#[derive(Component)]
+struct ForestViewPipelines([CachedRenderPipelineId; 4]);
+
+fn specialize_pipelines(
+    mut commands: Commands,
+    pipeline: Option<Res<ForestPipeline>>,
+    mut pipelines: ResMut<SpecializedRenderPipelines<ForestPipeline>>,
+    cache: Res<PipelineCache>,
+    views: Query<(Entity, &ViewTarget, &Msaa), With<ExtractedView>>,
+) {
+    let Some(pipeline) = pipeline else {
+        return;
+    };
+    for (entity, target, msaa) in &views {
+        let ids = PrimitiveKind::ALL.map(|kind| {
+            pipelines.specialize(
+                &cache,
+                &pipeline,
+                PipelineKey {
+                    kind,
+                    samples: msaa.samples(),
+                    format: target.main_texture_format(),
+                },
+            )
+        });
+        commands.entity(entity).insert(ForestViewPipelines(ids));
+    }
+}
+
+#[derive(Resource)]
+struct ForestBindGroups {
+    view: BindGroup,
+    geometry: BindGroup,
+    frame: BindGroup,
+}
+
+fn create_bind_groups(
+    mut commands: Commands,
+    pipeline: Option<Res<ForestPipeline>>,
+    buffers: Res<ForestBuffers>,
+    view_uniforms: Res<ViewUniforms>,
+    device: Res<RenderDevice>,
+    cache: Res<PipelineCache>,
+) {
+    let (
+        Some(pipeline),
+        Some(view),
+        Some(light),
+        Some(vertices),
+        Some(indices),
+        Some(primitives),
+        Some(instances),
+        Some(chunks),
+        Some(ring_offsets),
+    ) = (
+        pipeline,
+        view_uniforms.uniforms.binding(),
+        buffers.light.binding(),
+        buffers.vertices.binding(),
+        buffers.indices.binding(),
+        buffers.primitives.binding(),
+        buffers.instances.binding(),
+        buffers.chunks.binding(),
+        buffers.ring_offsets.binding(),
+    )
+    else {
+        commands.remove_resource::<ForestBindGroups>();
+        return;
+    };
+    commands.insert_resource(ForestBindGroups {
+        view: device.create_bind_group(
+            "sherwood_forest_view",
+            &cache.get_bind_group_layout(&pipeline.view_layout),
+            &BindGroupEntries::sequential((view, light)),
+        ),
+        geometry: device.create_bind_group(
+            "sherwood_forest_geometry",
+            &cache.get_bind_group_layout(&pipeline.geometry_layout),
+            &BindGroupEntries::sequential((vertices, indices, primitives)),
+        ),
+        frame: device.create_bind_group(
+            "sherwood_forest_frame",
+            &cache.get_bind_group_layout(&pipeline.frame_layout),
+            &BindGroupEntries::sequential((instances, chunks, ring_offsets)),
+        ),
+    });
+}
+
+fn draw_forest(
+    view: ViewQuery<(
+        &ExtractedCamera,
+        &ViewTarget,
+        &ViewDepthTexture,
+        &ViewUniformOffset,
+        &ForestViewPipelines,
+        Option<&MainPassResolutionOverride>,
+    )>,
+    buffers: Res<ForestBuffers>,
+    bind_groups: Option<Res<ForestBindGroups>>,
+    cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let Some(bind_groups) = bind_groups else {
+        return;
+    };
+    let starts = buffers.kind_starts;
+    if starts[4] == 0 {
+        return;
+    }
+    let (camera, target, depth, view_offset, pipelines, resolution_override) = view.into_inner();
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let color_attachments = [Some(target.get_color_attachment())];
+    let mut pass = ctx.begin_tracked_render_pass(RenderPassDescriptor {
+        label: Some(PASS_NAME),
+        color_attachments: &color_attachments,
+        depth_stencil_attachment: Some(depth.get_attachment(StoreOp::Store)),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    let span = diagnostics.pass_span(&mut pass, PASS_NAME);
+    if let Some(viewport) =
+        Viewport::from_viewport_and_override(camera.viewport.as_ref(), resolution_override)
+    {
+        pass.set_camera_viewport(&viewport);
+    }
+    pass.set_bind_group(0, &bind_groups.view, &[view_offset.offset]);
+    pass.set_bind_group(1, &bind_groups.geometry, &[]);
+    pass.set_bind_group(2, &bind_groups.frame, &[]);
+    for (k, kind) in PrimitiveKind::ALL.into_iter().enumerate() {
+        let chunks = starts[k]..starts[k + 1];
+        if chunks.is_empty() {
+            continue;
+        }
+        // Pipelines compile asynchronously: skip a kind until its pipeline is ready.
+        let Some(pipeline) = cache.get_render_pipeline(pipelines.0[k]) else {
+            continue;
+        };
+        pass.set_render_pipeline(pipeline);
+        pass.draw(0..kind.vertices_per_chunk(), chunks);
+    }
+    span.end(&mut pass);
+}

@@ -1,0 +1,211 @@
+//! Packing tree geometry and draw lists into the render pass's records (pure, headless).
+
+use bevy::math::Vec3;
+use bevy_sherwood::draw::*;
+use bevy_sherwood::tree::{SpeciesDesc, TreeModel};
+use proptest::prelude::*;
+
+fn species(name: &str) -> TreeModel {
+    let path = format!(
+        "{}/assets/species/{name}.species.ron",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    SpeciesDesc::from_ron_str(&std::fs::read_to_string(path).unwrap())
+        .unwrap()
+        .generate_and_analyze()
+        .unwrap()
+        .model
+}
+
+fn chunk_ranges(chunks: &[GpuChunk]) -> Vec<(u32, u32, u32)> {
+    chunks
+        .iter()
+        .map(|c| (c.instance, c.first, c.first + c.count))
+        .collect()
+}
+
+#[test]
+fn the_atlas_keeps_each_model_apart_and_addresses_leaves_by_range() {
+    let (slender, broad) = (species("slender"), species("broad"));
+    let mut atlas = GeometryAtlas::default();
+    let a = atlas.push(&slender);
+    let b = atlas.push(&broad);
+    let vertices = atlas.vertices.len() as u32;
+    assert!(atlas.indices.iter().all(|&i| i < vertices));
+    assert_eq!(
+        b.trunk_triangles,
+        a.leaf_triangles + a.leaf_triangle_prefix[a.point_count as usize]
+    );
+    // The second model's trunk triangles use the second model's vertices, which start
+    // after all of the first model's.
+    let first_of_b = (slender.trunk_positions.len() + slender.leaf_positions.len()) as u32;
+    let trunk_b = &atlas.indices[b.trunk_triangles as usize * 3..][..broad.trunk_indices.len()];
+    assert!(trunk_b.iter().all(|&i| i >= first_of_b));
+    for (i, (&packed, &own)) in trunk_b.iter().zip(&broad.trunk_indices).enumerate() {
+        assert_eq!(packed, own + first_of_b, "index {i}");
+    }
+    // Leaf `l`'s packed triangles are its own triangles, whatever order the model keeps.
+    for (l, leaf) in broad.leaves.iter().enumerate() {
+        let packed = b.leaf_triangles + b.leaf_triangle_prefix[l];
+        assert_eq!(
+            b.leaf_triangle_prefix[l + 1] - b.leaf_triangle_prefix[l],
+            leaf.triangles.len() as u32
+        );
+        let leaf_base = first_of_b + broad.trunk_positions.len() as u32;
+        for t in 0..leaf.triangles.len() {
+            for k in 0..3 {
+                let own = broad.leaf_indices[(leaf.triangles.start as usize + t) * 3 + k];
+                assert_eq!(
+                    atlas.indices[(packed as usize + t) * 3 + k],
+                    own + leaf_base
+                );
+            }
+        }
+    }
+    // Lines join each segment's rings; points sit at leaf centres.
+    let line = atlas.primitives[(b.lines) as usize];
+    assert_eq!(Vec3::from(line.b), broad.segments.line[0][1]);
+    let point = atlas.primitives[(b.points + 3) as usize];
+    assert_eq!(Vec3::from(point.a), broad.leaves[3].center);
+    assert_eq!(
+        point.ring_a,
+        broad.leaf_groups[broad.leaves[3].group as usize].ring
+    );
+}
+
+#[test]
+fn full_detail_is_every_triangle_in_few_chunks() {
+    let model = species("grand");
+    let mut atlas = GeometryAtlas::default();
+    let slot = atlas.push(&model);
+    let list = TreeDrawList::full(&model);
+    let counts = slot.counts(&list);
+    assert_eq!(counts, list.counts(&model));
+    assert_eq!(
+        counts.triangles as usize,
+        model.trunk_triangle_count() + model.leaf_triangle_count()
+    );
+    let mut chunks = FrameChunks::default();
+    chunks.push(7, &slot, &list);
+    let trunk = chunks.of(PrimitiveKind::TrunkTriangles);
+    assert_eq!(
+        trunk.len() as u32,
+        (model.trunk_triangle_count() as u32).div_ceil(TRIANGLES_PER_CHUNK)
+    );
+    assert!(
+        trunk
+            .iter()
+            .all(|c| c.instance == 7 && c.param == PART_TRUNK)
+    );
+    assert!(chunks.of(PrimitiveKind::Lines).is_empty());
+    assert!(chunks.of(PrimitiveKind::Points).is_empty());
+}
+
+#[test]
+fn ranges_past_the_model_are_clipped_not_trusted() {
+    let model = species("slender");
+    let mut atlas = GeometryAtlas::default();
+    let slot = atlas.push(&model);
+    let leaves = model.leaves.len() as u32;
+    let segments = model.segments.len() as u32;
+    let list = TreeDrawList {
+        trunk_triangles: 10..u32::MAX,
+        trunk_lines: vec![LineRun {
+            segments: segments - 1..segments + 40,
+            width: 0,
+        }],
+        leaf_triangles: std::iter::once(leaves + 5..leaves + 9).collect(),
+        leaf_points: vec![PointRun {
+            // Backwards: empty.
+            leaves: core::ops::Range { start: 30, end: 10 },
+            size: 3,
+        }],
+    };
+    let counts = slot.counts(&list);
+    assert_eq!(counts, list.counts(&model));
+    assert_eq!(counts.triangles, model.trunk_triangle_count() as u64 - 10);
+    assert_eq!(counts.lines, 1);
+    assert_eq!(counts.points, 0);
+    let mut chunks = FrameChunks::default();
+    chunks.push(0, &slot, &list);
+    let lines = chunks.of(PrimitiveKind::Lines);
+    assert_eq!(lines.len(), 1);
+    assert_eq!(lines[0].param, 1, "a zero width is drawn one pixel wide");
+    assert!(chunks.of(PrimitiveKind::LeafTriangles).is_empty());
+    assert!(chunks.of(PrimitiveKind::Points).is_empty());
+}
+
+#[test]
+fn an_empty_list_draws_nothing() {
+    let model = species("slender");
+    let mut list = TreeDrawList::full(&model);
+    assert!(!list.is_empty());
+    list.clear();
+    assert!(list.is_empty());
+    let mut atlas = GeometryAtlas::default();
+    let slot = atlas.push(&model);
+    let mut chunks = FrameChunks::default();
+    chunks.push(0, &slot, &list);
+    assert!(PrimitiveKind::ALL.iter().all(|&k| chunks.of(k).is_empty()));
+}
+
+static BROAD: std::sync::LazyLock<TreeModel> = std::sync::LazyLock::new(|| species("broad"));
+
+proptest! {
+    /// Chunks tile every requested range exactly once, in order, none empty or oversized.
+    #[test]
+    fn chunks_tile_the_ranges(
+        cuts in proptest::collection::vec(0u32..2000, 0..12),
+        widths in proptest::collection::vec(1u32..21, 12),
+    ) {
+        let model = &*BROAD;
+        let mut atlas = GeometryAtlas::default();
+        let slot = atlas.push(model);
+        let leaves = model.leaves.len() as u32;
+        let segments = model.segments.len() as u32;
+        let mut cuts: Vec<u32> = cuts.into_iter().map(|c| c % (leaves + 1)).collect();
+        cuts.sort_unstable();
+        let mut list = TreeDrawList {
+            trunk_triangles: 0..model.trunk_triangle_count() as u32 / 2,
+            ..Default::default()
+        };
+        for (i, pair) in cuts.windows(2).enumerate() {
+            if i % 2 == 0 {
+                list.leaf_triangles.push(pair[0]..pair[1]);
+            } else {
+                list.leaf_points.push(PointRun { leaves: pair[0]..pair[1], size: widths[i] });
+            }
+        }
+        let split = segments / 2;
+        list.trunk_lines.push(LineRun { segments: 0..split, width: widths[0] });
+        list.trunk_lines.push(LineRun { segments: split..segments, width: widths[1] });
+
+        let mut chunks = FrameChunks::default();
+        chunks.push(3, &slot, &list);
+        for kind in PrimitiveKind::ALL {
+            for c in chunks.of(kind) {
+                prop_assert!(c.count > 0 && c.count <= kind.per_chunk());
+                prop_assert_eq!(c.instance, 3);
+            }
+        }
+        // Consecutive chunks of one range join up; their total is the range's length.
+        let total = |kind| chunk_ranges(chunks.of(kind)).iter().map(|r| u64::from(r.2 - r.1)).sum::<u64>();
+        let counts = slot.counts(&list);
+        prop_assert_eq!(counts, list.counts(model));
+        prop_assert_eq!(total(PrimitiveKind::TrunkTriangles) + total(PrimitiveKind::LeafTriangles), counts.triangles);
+        prop_assert_eq!(total(PrimitiveKind::Lines), counts.lines);
+        prop_assert_eq!(total(PrimitiveKind::Points), counts.points);
+        let mut points = chunks.of(PrimitiveKind::Points).iter();
+        for run in list.leaf_points.iter().filter(|r| !r.leaves.is_empty()) {
+            let mut next = slot.points + run.leaves.start;
+            while next < slot.points + run.leaves.end {
+                let c = points.next().unwrap();
+                prop_assert_eq!(c.first, next);
+                prop_assert_eq!(c.param, run.size);
+                next += c.count;
+            }
+            prop_assert_eq!(next, slot.points + run.leaves.end);
+        }
+        prop_assert!(points.next().is_none());
+    }
+}

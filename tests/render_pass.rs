@@ -1,0 +1,522 @@
+//! The forest render pass on a real adapter (Mesa lavapipe in CI): images rendered
+//! without a window and measured. Run with `cargo test --features gpu-tests`.
+//!
+//! Every test renders into a 256×256 image with MSAA off, on a black background, and
+//! saves what it rendered under `target/gpu-tests/` for a human to look at.
+#![cfg(feature = "gpu-tests")]
+
+use std::sync::{Arc, Mutex};
+
+use bevy::app::PluginsState;
+use bevy::camera::{ClearColorConfig, RenderTarget};
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::log::LogPlugin;
+use bevy::prelude::*;
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::render::render_resource::{CachedPipelineState, PipelineCache, TextureFormat};
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::render::{RenderApp, RenderPlugin};
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
+use bevy_sherwood::ecosystem::TreeInstance;
+use bevy_sherwood::render::ForestRenderPlugin;
+use bevy_sherwood::tree::{AnalysisOptions, MeshData, SpeciesDesc, TreeModel, TreePlugin, analyze};
+use bevy_sherwood::{SherwoodCorePlugin, prelude::ForestRenderStats};
+
+const SIZE: u32 = 256;
+
+/// Bevy apps share global task pools; one render test at a time keeps them honest.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// A rendered image as RGBA8 rows.
+struct Picture {
+    width: u32,
+    height: u32,
+    rgba: Vec<u8>,
+}
+
+impl Picture {
+    fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = ((y * self.width + x) * 4) as usize;
+        self.rgba[i..i + 4].try_into().unwrap()
+    }
+
+    fn lit(&self, x: u32, y: u32) -> bool {
+        let p = self.pixel(x, y);
+        p[..3].iter().any(|&c| c > 3)
+    }
+
+    fn mask(&self) -> Vec<bool> {
+        (0..self.height)
+            .flat_map(|y| (0..self.width).map(move |x| (x, y)))
+            .map(|(x, y)| self.lit(x, y))
+            .collect()
+    }
+
+    fn coverage(&self) -> usize {
+        self.mask().into_iter().filter(|&b| b).count()
+    }
+
+    fn save(&self, name: &str) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/gpu-tests");
+        std::fs::create_dir_all(&dir).unwrap();
+        let image = Image::new(
+            bevy::render::render_resource::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
+            bevy::render::render_resource::TextureDimension::D2,
+            self.rgba.clone(),
+            TextureFormat::Rgba8UnormSrgb,
+            default(),
+        );
+        image
+            .try_into_dynamic()
+            .unwrap()
+            .to_rgba8()
+            .save(dir.join(format!("{name}.png")))
+            .unwrap();
+    }
+}
+
+/// Renders one frame of the scene `spawn` builds, seen from `eye` looking at `target`.
+fn render(
+    name: &str,
+    eye: Vec3,
+    target: Vec3,
+    spawn: impl FnOnce(&mut World) + Send + 'static,
+) -> (Picture, ForestRenderStats) {
+    let _serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut app = App::new();
+    app.add_plugins(
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: None,
+                exit_condition: ExitCondition::DontExit,
+                close_when_requested: false,
+                ..default()
+            })
+            .set(RenderPlugin {
+                synchronous_pipeline_compilation: true,
+                ..default()
+            })
+            .disable::<WinitPlugin>()
+            // Several apps in one process: only the first could install a logger.
+            .disable::<LogPlugin>()
+            // The render world stays on this thread, where the test can inspect it.
+            .disable::<PipelinedRenderingPlugin>(),
+    )
+    .add_plugins((SherwoodCorePlugin, TreePlugin, ForestRenderPlugin));
+    while app.plugins_state() == PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    app.finish();
+    app.cleanup();
+
+    let world = app.world_mut();
+    let image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba8UnormSrgb, None);
+    let image = world.resource_mut::<Assets<Image>>().add(image);
+    world.spawn((
+        Camera3d::default(),
+        Camera {
+            clear_color: ClearColorConfig::Custom(Color::BLACK),
+            ..default()
+        },
+        RenderTarget::Image(image.clone().into()),
+        Msaa::Off,
+        Tonemapping::None,
+        Transform::from_translation(eye).looking_at(target, Vec3::Y),
+    ));
+    world.spawn((
+        DirectionalLight::default(),
+        Transform::from_xyz(1.0, 3.0, 2.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    spawn(world);
+
+    // Warm up until every pipeline (ours and Bevy's) has compiled.
+    let mut ready_frames = 0;
+    for _ in 0..200 {
+        app.update();
+        let render_world = app.sub_app(RenderApp).world();
+        let cache = render_world.resource::<PipelineCache>();
+        let ready = cache
+            .pipelines()
+            .all(|p| matches!(p.state, CachedPipelineState::Ok(_)));
+        ready_frames = if ready { ready_frames + 1 } else { 0 };
+        if ready_frames >= 3 {
+            break;
+        }
+    }
+    assert!(ready_frames >= 3, "{name}: pipelines never became ready");
+
+    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
+    let sink = captured.clone();
+    app.world_mut().spawn(Screenshot::image(image)).observe(
+        move |event: On<ScreenshotCaptured>| {
+            *sink.lock().unwrap() = Some(event.image.clone());
+        },
+    );
+    for _ in 0..20 {
+        app.update();
+        if captured.lock().unwrap().is_some() {
+            break;
+        }
+    }
+    let image = captured.lock().unwrap().take().expect("no screenshot");
+    let picture = Picture {
+        width: image.width(),
+        height: image.height(),
+        rgba: image.data.expect("screenshot without data"),
+    };
+    picture.save(name);
+    let stats = app.world().resource::<ForestRenderStats>().clone();
+    (picture, stats)
+}
+
+fn species(name: &str) -> TreeModel {
+    let path = format!(
+        "{}/assets/species/{name}.species.ron",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    SpeciesDesc::from_ron_str(&text)
+        .unwrap()
+        .generate_and_analyze()
+        .unwrap()
+        .model
+}
+
+/// A vertical column along +Y: rings of radius 0.1 at heights 0, 1, 2 and 3.
+fn column() -> TreeModel {
+    let k = 8;
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for y in 0..4 {
+        for j in 0..k {
+            let a = core::f32::consts::TAU * j as f32 / k as f32;
+            positions.push(Vec3::new(0.1 * a.cos(), y as f32, 0.1 * a.sin()));
+        }
+    }
+    for y in 0..3u32 {
+        let (a, b) = (y * k, (y + 1) * k);
+        for j in 0..k {
+            let (a0, a1) = (a + j, a + (j + 1) % k);
+            let (b0, b1) = (b + j, b + (j + 1) % k);
+            indices.extend([a0, b1, a1, a0, b0, b1]);
+        }
+    }
+    let trunk = MeshData {
+        positions: &positions,
+        indices: &indices,
+        ..Default::default()
+    };
+    analyze(&trunk, &MeshData::default(), &AnalysisOptions::default())
+        .unwrap()
+        .model
+}
+
+fn spawn_tree(world: &mut World, model: TreeModel, list: Option<TreeDrawList>) -> Entity {
+    let handle = world.resource_mut::<Assets<TreeModel>>().add(model);
+    let mut entity = world.spawn((
+        TreeInstance {
+            forest: Entity::PLACEHOLDER,
+            species: 0,
+            model: handle,
+            index: 0,
+            scale: 1.0,
+            trunk_material: 0,
+            leaf_material: 0,
+            motion: 0,
+        },
+        Transform::IDENTITY,
+    ));
+    if let Some(list) = list {
+        entity.insert(list);
+    }
+    entity.id()
+}
+
+fn only(list: impl FnOnce(&mut TreeDrawList)) -> TreeDrawList {
+    let mut l = TreeDrawList::default();
+    list(&mut l);
+    l
+}
+
+/// Pixels set in exactly one of the two images, over pixels set in either.
+fn coverage_difference(a: &Picture, b: &Picture) -> f64 {
+    let (a, b) = (a.mask(), b.mask());
+    let either = a.iter().zip(&b).filter(|(x, y)| **x || **y).count();
+    let one = a.iter().zip(&b).filter(|(x, y)| **x != **y).count();
+    one as f64 / either.max(1) as f64
+}
+
+#[test]
+fn full_detail_covers_the_pixels_of_the_standard_renderer() {
+    let model = species("slender");
+    let eye = Vec3::new(0.0, 4.0, 14.0);
+    let target = Vec3::new(0.0, 4.0, 0.0);
+    let (ours, stats) = render("full_detail_pass", eye, target, {
+        let model = model.clone();
+        move |world| {
+            spawn_tree(world, model, None);
+        }
+    });
+    assert_eq!(stats.instances, 1);
+    assert!(stats.counts.triangles > 0);
+    assert!(stats.draw_calls_per_view <= 2, "{stats:?}");
+    let (standard, _) = render("full_detail_standard", eye, target, move |world| {
+        let trunk = world.resource_mut::<Assets<Mesh>>().add(model.trunk_mesh());
+        let leaves = world.resource_mut::<Assets<Mesh>>().add(model.leaf_mesh());
+        let mut materials = world.resource_mut::<Assets<StandardMaterial>>();
+        let bark = materials.add(StandardMaterial {
+            base_color: Color::WHITE,
+            unlit: true,
+            ..default()
+        });
+        let leaf = materials.add(StandardMaterial {
+            base_color: Color::WHITE,
+            unlit: true,
+            double_sided: true,
+            cull_mode: None,
+            ..default()
+        });
+        world.spawn((Mesh3d(trunk), MeshMaterial3d(bark)));
+        world.spawn((Mesh3d(leaves), MeshMaterial3d(leaf)));
+    });
+    let covered = standard.coverage();
+    assert!(covered > 2000, "the tree should fill part of the image");
+    let difference = coverage_difference(&ours, &standard);
+    assert!(
+        difference < 0.02,
+        "coverage differs by {:.2}% ({} vs {} pixels)",
+        difference * 100.0,
+        ours.coverage(),
+        covered
+    );
+}
+
+#[test]
+fn lines_are_as_wide_as_asked() {
+    let model = column();
+    let segment = model
+        .segments
+        .line
+        .iter()
+        .position(|l| (l[0].y - 1.0).abs() < 1e-3)
+        .expect("a segment from y = 1 to y = 2") as u32;
+    for width in [1, 2, 3, 5, 8, 13, 20] {
+        let list = only(|l| {
+            l.trunk_lines.push(LineRun {
+                segments: segment..segment + 1,
+                width,
+            });
+        });
+        let model = model.clone();
+        let (picture, stats) = render(
+            &format!("line_width_{width}"),
+            Vec3::new(0.0, 1.5, 6.0),
+            Vec3::new(0.0, 1.5, 0.0),
+            move |world| {
+                spawn_tree(world, model, Some(list));
+            },
+        );
+        assert_eq!(stats.counts.lines, 1);
+        assert_eq!(stats.draw_calls_per_view, 1);
+        let y = SIZE / 2;
+        let across = (0..SIZE).filter(|&x| picture.lit(x, y)).count() as i64;
+        assert!(
+            across >= 1 && (across - i64::from(width)).abs() <= 1,
+            "a {width}-pixel line measures {across} pixels across"
+        );
+        // The segment spans a full metre on screen, not a dot.
+        let along = (0..SIZE)
+            .map(|x| (0..SIZE).filter(|&y| picture.lit(x, y)).count())
+            .max()
+            .unwrap_or(0);
+        assert!(along > 20, "the line is {along} pixels long");
+    }
+}
+
+#[test]
+fn points_cover_their_size_squared() {
+    let model = species("slender");
+    let leaf = model.leaves.len() as u32 / 2;
+    let center = model.leaves[leaf as usize].center;
+    for size in [1, 2, 4, 7, 12, 20] {
+        let list = only(|l| {
+            l.leaf_points.push(PointRun {
+                leaves: leaf..leaf + 1,
+                size,
+            });
+        });
+        let model = model.clone();
+        let (picture, stats) = render(
+            &format!("point_size_{size}"),
+            center + Vec3::new(0.0, 0.0, 5.0),
+            center,
+            move |world| {
+                spawn_tree(world, model, Some(list));
+            },
+        );
+        assert_eq!(stats.counts.points, 1);
+        let covered = picture.coverage() as i64;
+        let size = i64::from(size);
+        assert!(
+            covered >= (size - 1).pow(2).max(1) && covered <= (size + 1).pow(2),
+            "a {size}-pixel point covers {covered} pixels"
+        );
+    }
+}
+
+fn cube(world: &mut World, at: Vec3) {
+    let mesh = world
+        .resource_mut::<Assets<Mesh>>()
+        .add(Cuboid::new(1.0, 1.0, 1.0));
+    let material = world
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial {
+            base_color: Color::srgb(1.0, 0.0, 0.0),
+            unlit: true,
+            ..default()
+        });
+    world.spawn((
+        Mesh3d(mesh),
+        MeshMaterial3d(material),
+        Transform::from_translation(at),
+    ));
+}
+
+#[test]
+fn opaque_geometry_hides_lines_and_points_behind_it() {
+    let column = column();
+    let segment = column
+        .segments
+        .line
+        .iter()
+        .position(|l| (l[0].y - 1.0).abs() < 1e-3)
+        .unwrap() as u32;
+    let line = only(|l| {
+        l.trunk_lines.push(LineRun {
+            segments: segment..segment + 1,
+            width: 6,
+        });
+    });
+    let slender = species("slender");
+    let leaf = 0;
+    let center = slender.leaves[leaf as usize].center;
+    let point = only(|l| {
+        l.leaf_points.push(PointRun {
+            leaves: leaf..leaf + 1,
+            size: 10,
+        });
+    });
+
+    let red_only = |p: &Picture| {
+        (0..SIZE)
+            .flat_map(|y| (0..SIZE).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let c = p.pixel(x, y);
+                p.lit(x, y) && !(c[0] > 200 && c[1] < 30 && c[2] < 30)
+            })
+            .count()
+    };
+    let cases: [(&str, TreeModel, TreeDrawList, Vec3, Vec3); 2] = [
+        ("line", column, line, Vec3::new(0.0, 1.5, 0.0), Vec3::Z),
+        ("point", slender, point, center, Vec3::Z),
+    ];
+    for (what, model, list, at, towards_eye) in cases {
+        let eye = at + towards_eye * 6.0;
+        for (where_, cube_at, visible) in [
+            ("behind", at + towards_eye * 3.0, false),
+            ("in_front", at - towards_eye * 1.5, true),
+        ] {
+            let (model, list) = (model.clone(), list.clone());
+            let (picture, _) = render(
+                &format!("occlusion_{what}_{where_}"),
+                eye,
+                at,
+                move |world| {
+                    cube(world, cube_at);
+                    spawn_tree(world, model, Some(list));
+                },
+            );
+            let not_cube = red_only(&picture);
+            if visible {
+                assert!(not_cube > 20, "the {what} in front of the cube is hidden");
+            } else {
+                assert_eq!(not_cube, 0, "the {what} behind the cube shows through");
+            }
+        }
+    }
+}
+
+#[test]
+fn draw_ranges_change_exactly_the_pixels_they_name() {
+    let model = species("slender");
+    let leaves = model.leaves.len() as u32;
+    let half = leaves / 2;
+    let trunk = 0..model.trunk_triangle_count() as u32;
+    let eye = Vec3::new(0.0, 5.0, 9.0);
+    let target = Vec3::new(0.0, 5.0, 0.0);
+    let shoot = |name: &str, list: TreeDrawList| {
+        let model = model.clone();
+        render(name, eye, target, move |world| {
+            spawn_tree(world, model, Some(list));
+        })
+        .0
+    };
+    let all_triangles = shoot(
+        "ranges_all_triangles",
+        only(|l| {
+            l.trunk_triangles = trunk.clone();
+            l.leaf_triangles.push(0..leaves);
+        }),
+    );
+    let mixed = shoot(
+        "ranges_half_points",
+        only(|l| {
+            l.trunk_triangles = trunk.clone();
+            l.leaf_triangles.push(0..half);
+            l.leaf_points.push(PointRun {
+                leaves: half..leaves,
+                size: 3,
+            });
+        }),
+    );
+    let second_half_triangles = shoot(
+        "ranges_second_half_triangles",
+        only(|l| l.leaf_triangles.push(half..leaves)),
+    );
+    let second_half_points = shoot(
+        "ranges_second_half_points",
+        only(|l| {
+            l.leaf_points.push(PointRun {
+                leaves: half..leaves,
+                size: 3,
+            });
+        }),
+    );
+    let (t2, p2) = (second_half_triangles.mask(), second_half_points.mask());
+    let mut changed = 0;
+    let mut outside = 0;
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            if all_triangles.pixel(x, y) != mixed.pixel(x, y) {
+                changed += 1;
+                let i = (y * SIZE + x) as usize;
+                if !t2[i] && !p2[i] {
+                    outside += 1;
+                }
+            }
+        }
+    }
+    assert!(changed > 100, "only {changed} pixels changed");
+    assert_eq!(
+        outside, 0,
+        "{outside} of {changed} changed pixels lie outside the second half's leaves"
+    );
+}
