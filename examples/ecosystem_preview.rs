@@ -1,6 +1,6 @@
-//! The default ecosystem drawn with Bevy's standard renderer (every tree at full detail),
-//! with the culling boxes shown: dashed boxes are fully visible, solid ones partly.
-//! A reference view until the forest render pass and the forest example arrive.
+//! The default ecosystem with every tree at full detail through the forest render pass
+//! (no level of detail), with the culling boxes shown: dashed boxes are fully visible,
+//! solid ones partly.
 //!
 //! ```sh
 //! cargo run --release --example ecosystem_preview -- [ECOSYSTEM] [SCREENSHOT.png]
@@ -17,9 +17,6 @@ struct Preview {
     screenshot: Option<String>,
     frames: u32,
 }
-
-#[derive(Component)]
-struct Drawn;
 
 fn main() -> AppExit {
     let mut args = std::env::args().skip(1);
@@ -67,67 +64,15 @@ fn main() -> AppExit {
                 ));
             },
         )
-        .add_systems(Update, (draw_trees, capture))
+        .add_systems(Update, capture)
         .run()
-}
-
-/// Gives every tree instance the standard renderer's meshes, once its model has loaded.
-fn draw_trees(
-    mut commands: Commands,
-    instances: Query<(Entity, &TreeInstance), Without<Drawn>>,
-    models: Res<Assets<TreeModel>>,
-    mut meshes: ResMut<Assets<Mesh>>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
-    mut cache: Local<
-        Vec<
-            Option<(
-                Handle<Mesh>,
-                Handle<Mesh>,
-                Handle<StandardMaterial>,
-                Handle<StandardMaterial>,
-            )>,
-        >,
-    >,
-) {
-    for (entity, instance) in &instances {
-        let Some(model) = models.get(&instance.model) else {
-            continue;
-        };
-        if cache.len() <= instance.species {
-            cache.resize(instance.species + 1, None);
-        }
-        let (trunk, leaves, bark, leaf) = cache[instance.species]
-            .get_or_insert_with(|| {
-                let [br, bg, bb] = model.bark_color;
-                let [lr, lg, lb] = model.leaf_color;
-                (
-                    meshes.add(model.trunk_mesh()),
-                    meshes.add(model.leaf_mesh()),
-                    materials.add(Color::linear_rgb(br, bg, bb)),
-                    materials.add(StandardMaterial {
-                        base_color: Color::linear_rgb(lr, lg, lb),
-                        double_sided: true,
-                        cull_mode: None,
-                        ..default()
-                    }),
-                )
-            })
-            .clone();
-        commands
-            .entity(entity)
-            .insert((Drawn, Visibility::default()))
-            .with_children(|parent| {
-                parent.spawn((Mesh3d(trunk), MeshMaterial3d(bark)));
-                parent.spawn((Mesh3d(leaves), MeshMaterial3d(leaf)));
-            });
-    }
 }
 
 fn capture(
     mut commands: Commands,
     mut preview: ResMut<Preview>,
     forests: Query<&ForestState>,
-    drawn: Query<(), With<Drawn>>,
+    drawn: Res<ForestRenderStats>,
     culling: Res<ForestCulling>,
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -136,7 +81,7 @@ fn capture(
     };
     let ready = forests
         .iter()
-        .any(|f| !f.instances.is_empty() && drawn.iter().count() == f.instances.len());
+        .any(|f| !f.instances.is_empty() && drawn.instances as usize == f.instances.len());
     if !ready || culling.hierarchy.is_none() {
         return;
     }
