@@ -20,6 +20,7 @@ use std::time::Instant;
 use bevy::app::PluginsState;
 use bevy::camera::{ClearColorConfig, RenderTarget};
 use bevy::prelude::*;
+use bevy::render::diagnostic::RenderDiagnosticsPlugin;
 use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::{
     CachedPipelineState, PipelineCache, PollType, TextureFormat, TextureUsages,
@@ -64,7 +65,12 @@ impl Bench {
                 .disable::<WinitPlugin>()
                 .disable::<PipelinedRenderingPlugin>(),
         )
-        .add_plugins((SherwoodCorePlugin, TreePlugin, ForestRenderPlugin));
+        .add_plugins((
+            SherwoodCorePlugin,
+            TreePlugin,
+            ForestRenderPlugin,
+            RenderDiagnosticsPlugin,
+        ));
         while app.plugins_state() == PluginsState::Adding {
             bevy::tasks::tick_global_task_pools_on_main_thread();
         }
@@ -110,7 +116,11 @@ impl Bench {
     fn frame(&mut self) -> f64 {
         let start = Instant::now();
         self.app.update();
-        let device = self.app.sub_app(RenderApp).world().resource::<RenderDevice>();
+        let device = self
+            .app
+            .sub_app(RenderApp)
+            .world()
+            .resource::<RenderDevice>();
         let _ = device.poll(PollType::wait_indefinitely());
         start.elapsed().as_secs_f64() * 1000.0
     }
@@ -232,7 +242,7 @@ fn picture(path: &str) {
     let handle = bench.add_model(model);
     bench.tree(&handle, Vec3::ZERO, Some(list));
     bench.camera(
-        Vec3::new(0.0, height * 0.55, height * 1.25),
+        Vec3::new(0.0, height * 0.5, height * 1.45),
         Vec3::new(0.0, height * 0.5, 0.0),
     );
     bench.measure(3);
@@ -326,8 +336,11 @@ fn run() {
     );
     println!("  empty frame            {empty_ms:8.1} ms");
     println!(
-        "  forest pass            {pass_ms:8.1} ms  ({} draw calls)",
-        pass_stats.draw_calls_per_view
+        "  forest pass            {pass_ms:8.1} ms  ({} draw calls; pass GPU time {})",
+        pass_stats.draw_calls_per_view,
+        pass_stats
+            .gpu_time_ms
+            .map_or("not measured".into(), |t| format!("{t:.1} ms"))
     );
     println!(
         "  Bevy standard meshes   {standard_ms:8.1} ms  (pass / standard = {:.2}, above empty {:.2})",
@@ -339,10 +352,8 @@ fn run() {
     let grand = &models[2];
     let segments = grand.segments.len() as u32;
     let leaves = grand.leaves.len() as u32;
-    let mut configs: Vec<(String, TreeDrawList)> = vec![(
-        "triangle".into(),
-        TreeDrawList::full(grand),
-    )];
+    let mut configs: Vec<(String, TreeDrawList)> =
+        vec![("triangle".into(), TreeDrawList::full(grand))];
     for w in [1, 4, 10, 20] {
         configs.push((
             format!("line {w:>2} px"),

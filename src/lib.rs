@@ -6,9 +6,11 @@ pub mod cost;
 pub mod culling;
 pub mod draw;
 pub mod ecosystem;
+pub mod lod;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod tree;
+pub mod view;
 pub mod wind;
 
 mod rng;
@@ -32,9 +34,11 @@ pub mod prelude {
     pub use crate::culling::{CullView, CullingDebug, CullingPlugin, ForestCulling};
     pub use crate::draw::{LineRun, PointRun, TreeDrawList, TreeShading};
     pub use crate::ecosystem::{Ecosystem, EcosystemPlugin, Forest, TreeInstance};
+    pub use crate::lod::{FrameBudget, LodDiagnostics, LodMode, LodPlugin};
     #[cfg(feature = "render")]
     pub use crate::render::{ForestHud, ForestHudPlugin, ForestRenderPlugin, ForestRenderStats};
     pub use crate::tree::{SpeciesDesc, TreeModel, TreePlugin};
+    pub use crate::view::LodView;
     pub use crate::{SherwoodCorePlugin, SherwoodPlugins, SherwoodSystems};
 }
 
@@ -79,6 +83,7 @@ impl Plugin for SherwoodCorePlugin {
                 .chain()
                 .after(TransformSystems::Propagate),
         );
+        view::build(app);
         #[cfg(feature = "render")]
         app.configure_sets(
             PostUpdate,
@@ -102,7 +107,8 @@ impl PluginGroup for SherwoodPlugins {
             .add(tree::TreePlugin)
             .add(ecosystem::EcosystemPlugin)
             .add(culling::CullingPlugin)
-            .add(wind::WindPlugin);
+            .add(wind::WindPlugin)
+            .add(lod::LodPlugin);
         #[cfg(feature = "render")]
         let group = group.add(render::ForestRenderPlugin);
         group

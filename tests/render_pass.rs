@@ -88,6 +88,17 @@ fn render(
     target: Vec3,
     spawn: impl FnOnce(&mut World) + Send + 'static,
 ) -> (Picture, ForestRenderStats) {
+    let (mut pictures, stats) = render_views(name, &[(eye, target)], spawn);
+    (pictures.remove(0), stats)
+}
+
+/// Renders one frame of the scene `spawn` builds with one camera per `(eye, target)`,
+/// each into its own image.
+fn render_views(
+    name: &str,
+    views: &[(Vec3, Vec3)],
+    spawn: impl FnOnce(&mut World) + Send + 'static,
+) -> (Vec<Picture>, ForestRenderStats) {
     let _serial = SERIAL
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -118,19 +129,24 @@ fn render(
     app.cleanup();
 
     let world = app.world_mut();
-    let image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba8UnormSrgb, None);
-    let image = world.resource_mut::<Assets<Image>>().add(image);
-    world.spawn((
-        Camera3d::default(),
-        Camera {
-            clear_color: ClearColorConfig::Custom(Color::BLACK),
-            ..default()
-        },
-        RenderTarget::Image(image.clone().into()),
-        Msaa::Off,
-        Tonemapping::None,
-        Transform::from_translation(eye).looking_at(target, Vec3::Y),
-    ));
+    let mut images = Vec::new();
+    for (order, &(eye, target)) in views.iter().enumerate() {
+        let image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba8UnormSrgb, None);
+        let image = world.resource_mut::<Assets<Image>>().add(image);
+        world.spawn((
+            Camera3d::default(),
+            Camera {
+                clear_color: ClearColorConfig::Custom(Color::BLACK),
+                order: order as isize,
+                ..default()
+            },
+            RenderTarget::Image(image.clone().into()),
+            Msaa::Off,
+            Tonemapping::None,
+            Transform::from_translation(eye).looking_at(target, Vec3::Y),
+        ));
+        images.push(image);
+    }
     world.spawn((
         DirectionalLight::default(),
         Transform::from_xyz(1.0, 3.0, 2.0).looking_at(Vec3::ZERO, Vec3::Y),
@@ -153,28 +169,36 @@ fn render(
     }
     assert!(ready_frames >= 3, "{name}: pipelines never became ready");
 
-    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
-    let sink = captured.clone();
-    app.world_mut().spawn(Screenshot::image(image)).observe(
-        move |event: On<ScreenshotCaptured>| {
-            *sink.lock().unwrap() = Some(event.image.clone());
-        },
-    );
-    for _ in 0..20 {
-        app.update();
-        if captured.lock().unwrap().is_some() {
-            break;
+    let mut pictures = Vec::new();
+    for (i, image) in images.into_iter().enumerate() {
+        let captured: Arc<Mutex<Option<Image>>> = Arc::default();
+        let sink = captured.clone();
+        app.world_mut().spawn(Screenshot::image(image)).observe(
+            move |event: On<ScreenshotCaptured>| {
+                *sink.lock().unwrap() = Some(event.image.clone());
+            },
+        );
+        for _ in 0..20 {
+            app.update();
+            if captured.lock().unwrap().is_some() {
+                break;
+            }
         }
+        let image = captured.lock().unwrap().take().expect("no screenshot");
+        let picture = Picture {
+            width: image.width(),
+            height: image.height(),
+            rgba: image.data.expect("screenshot without data"),
+        };
+        picture.save(&if i == 0 {
+            name.to_owned()
+        } else {
+            format!("{name}_view{i}")
+        });
+        pictures.push(picture);
     }
-    let image = captured.lock().unwrap().take().expect("no screenshot");
-    let picture = Picture {
-        width: image.width(),
-        height: image.height(),
-        rgba: image.data.expect("screenshot without data"),
-    };
-    picture.save(name);
     let stats = app.world().resource::<ForestRenderStats>().clone();
-    (picture, stats)
+    (pictures, stats)
 }
 
 fn species(name: &str) -> TreeModel {
@@ -519,4 +543,74 @@ fn draw_ranges_change_exactly_the_pixels_they_name() {
         outside, 0,
         "{outside} of {changed} changed pixels lie outside the second half's leaves"
     );
+}
+
+#[test]
+fn every_camera_draws_the_forest_from_its_own_eye() {
+    let model = species("slender");
+    let front = (Vec3::new(0.0, 4.0, 14.0), Vec3::new(0.0, 4.0, 0.0));
+    let side = (Vec3::new(14.0, 4.0, 0.0), Vec3::new(0.0, 4.0, 0.0));
+    let (pictures, stats) = render_views("two_views", &[front, side], move |world| {
+        spawn_tree(world, model, None);
+    });
+    assert_eq!(stats.views, 2);
+    let (a, b) = (&pictures[0], &pictures[1]);
+    assert!(a.coverage() > 2000 && b.coverage() > 2000);
+    assert!(
+        coverage_difference(a, b) > 0.2,
+        "the two views should see the tree from different sides"
+    );
+}
+
+#[test]
+fn ring_offsets_move_the_rings_on_the_gpu() {
+    use bevy_sherwood::culling::ForestCulling;
+    use bevy_sherwood::wind::RingOffsetTable;
+    let model = column();
+    let rings = model.rings.len();
+    // Every ring but the root moves 0.5 m along +X: the column leans as one piece above
+    // its first ring.
+    let offsets: Vec<Vec3> = model
+        .rings
+        .iter()
+        .map(|r| {
+            if r.is_root() {
+                Vec3::ZERO
+            } else {
+                Vec3::X * 0.5
+            }
+        })
+        .collect();
+    let eye = Vec3::new(0.0, 1.5, 6.0);
+    let target = Vec3::new(0.0, 1.5, 0.0);
+    let still = {
+        let model = model.clone();
+        render("wind_still", eye, target, move |world| {
+            spawn_tree(world, model, None);
+        })
+        .0
+    };
+    let (moved, _) = render("wind_moved", eye, target, move |world| {
+        let entity = spawn_tree(world, model, None);
+        let mut culling = ForestCulling::default();
+        culling.entities = vec![entity];
+        world.insert_resource(culling);
+        world.insert_resource(RingOffsetTable {
+            offsets,
+            starts: vec![0, rings as u32],
+            moved: 1,
+        });
+    });
+    // Mean x of the lit pixels in the top rows (rings at y = 2 and 3) moves right; the
+    // bottom stays where it was.
+    let mean_x = |p: &Picture, rows: core::ops::Range<u32>| {
+        let xs: Vec<u32> = rows
+            .flat_map(|y| (0..SIZE).filter(move |&x| p.lit(x, y)))
+            .collect();
+        xs.iter().sum::<u32>() as f64 / xs.len().max(1) as f64
+    };
+    let top = 40..90;
+    let shift = mean_x(&moved, top.clone()) - mean_x(&still, top);
+    // 0.5 m at 6 m with a 45° field of view is about 26 pixels.
+    assert!(shift > 15.0, "the top moved {shift:.1} px");
 }

@@ -242,28 +242,32 @@ pub struct Calibration {
 }
 
 impl Default for Calibration {
-    /// A deliberately rough default (per-primitive costs of a software rasteriser, about
-    /// 1 µs per small triangle), used with a warning until a calibration is measured.
+    /// A rough default, used with a warning until a calibration is measured: per-primitive
+    /// costs of this crate's render pass on Mesa lavapipe (a software rasteriser), as
+    /// `pass_benchmark` measured them on a 2-core machine — about 1.1 µs per small
+    /// triangle, 2.6 µs per line and 1.5 µs per point, plus a few ns per covered pixel.
+    /// `pixels` are covered pixels: a line's length × width, a point's size².
     fn default() -> Self {
-        let line = |w: f32| LinearCost {
-            fixed: 2e-4,
-            per_primitive: 2e-6,
-            per_pixel: 2e-9 * w,
-        };
         Self {
             adapter: "unknown".into(),
             driver: "unknown".into(),
             triangles: LinearCost {
                 fixed: 2e-4,
-                per_primitive: 1e-6,
-                per_pixel: 2e-9,
+                per_primitive: 1.1e-6,
+                per_pixel: 5e-9,
             },
-            lines: (1..=20).map(|w| line(w as f32)).collect(),
+            lines: (1..=20)
+                .map(|_| LinearCost {
+                    fixed: 2e-4,
+                    per_primitive: 2.6e-6,
+                    per_pixel: 5e-9,
+                })
+                .collect(),
             points: (1..=20)
-                .map(|s| LinearCost {
+                .map(|_| LinearCost {
                     fixed: 2e-4,
                     per_primitive: 1.5e-6,
-                    per_pixel: 2e-9 * s as f32,
+                    per_pixel: 1.2e-8,
                 })
                 .collect(),
             logic: LogicTable::new(vec![(0, 2e-3), (1000, 6e-3)]),

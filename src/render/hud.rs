@@ -17,7 +17,7 @@ pub struct ForestHudPlugin;
 pub struct ForestHud {
     /// Whether the overlay is shown.
     pub visible: bool,
-    /// Target frame time in milliseconds, shown when set (the budget stage sets it).
+    /// Target frame time in milliseconds to show; when `None`, the [`FrameBudget`](crate::lod::FrameBudget)'s.
     pub target_ms: Option<f32>,
     /// Extra lines shown under the counters (an example's key help, for instance).
     pub footer: String,
@@ -73,6 +73,7 @@ fn update_hud(
     time: Res<Time<Real>>,
     stats: Res<ForestRenderStats>,
     mut hud: ResMut<ForestHud>,
+    budget: Option<Res<crate::lod::FrameBudget>>,
     mut text: Query<(&mut Text, &mut Visibility), With<HudText>>,
 ) {
     let frame_ms = time.delta_secs() * 1000.0;
@@ -94,11 +95,15 @@ fn update_hud(
         if !hud.visible {
             continue;
         }
-        text.0 = hud_text(&hud, &stats);
+        text.0 = hud_text(&hud, &stats, budget.as_deref());
     }
 }
 
-fn hud_text(hud: &ForestHud, stats: &ForestRenderStats) -> String {
+fn hud_text(
+    hud: &ForestHud,
+    stats: &ForestRenderStats,
+    budget: Option<&crate::lod::FrameBudget>,
+) -> String {
     use core::fmt::Write;
     let mut s = String::new();
     let fps = if hud.smoothed_frame_ms > 0.0 {
@@ -114,9 +119,10 @@ fn hud_text(hud: &ForestHud, stats: &ForestRenderStats) -> String {
         "frame     {:.1} ms ({fps:.1} fps)",
         hud.smoothed_frame_ms
     );
-    match hud.target_ms {
+    match hud.target_ms.or(budget.map(|b| b.target_ms)) {
         Some(target) => {
-            let _ = writeln!(s, "target    {target:.1} ms");
+            let mode = budget.map_or(String::new(), |b| format!(" ({:?})", b.mode));
+            let _ = writeln!(s, "target    {target:.1} ms{mode}");
         }
         None => {
             let _ = writeln!(s, "target    none");

@@ -29,7 +29,9 @@ impl Projection {
 }
 
 /// The range of integer line widths or point sizes, in pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, bevy::reflect::Reflect,
+)]
 pub struct PixelRange {
     /// Thinnest or smallest.
     pub min: u32,

@@ -13,6 +13,7 @@ use crate::SherwoodSystems;
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::ecosystem::TreeInstance;
 use crate::tree::TreeModel;
+use crate::view::LodView;
 
 /// Wind configuration. Changing it at run time takes effect on the next frame.
 #[derive(Resource, Clone, Debug)]
@@ -32,17 +33,6 @@ impl Default for WindSettings {
             sets: Vec::new(),
         }
     }
-}
-
-/// Where the camera is and how it projects, for the motion level of detail. Perspective
-/// 3D cameras get one automatically (with the `render` feature); without one every
-/// visible tree moves.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
-pub struct WindView {
-    /// Camera position, world space.
-    pub position: Vec3,
-    /// Pixels per world unit at unit distance (`viewport height / (2·tan(fov / 2))`).
-    pub focal_pixels: f32,
 }
 
 /// Ring offsets of every instance, in the order of [`ForestCulling::entities`]: instance
@@ -75,42 +65,6 @@ pub(super) fn build(app: &mut App) {
                 .chain()
                 .in_set(SherwoodSystems::Animate),
         );
-    #[cfg(feature = "render")]
-    app.add_systems(
-        PostUpdate,
-        update_wind_views.before(SherwoodSystems::Animate),
-    );
-}
-
-/// Keeps a [`WindView`] on every perspective 3D camera.
-#[cfg(feature = "render")]
-fn update_wind_views(
-    mut commands: Commands,
-    cameras: Query<
-        (
-            Entity,
-            &Camera,
-            &Projection,
-            &GlobalTransform,
-            Option<&WindView>,
-        ),
-        With<Camera3d>,
-    >,
-) {
-    for (entity, camera, projection, transform, current) in &cameras {
-        let (Projection::Perspective(perspective), Some(size)) =
-            (projection, camera.physical_viewport_size())
-        else {
-            continue;
-        };
-        let view = WindView {
-            position: transform.translation(),
-            focal_pixels: size.y as f32 / (2.0 * (perspective.fov * 0.5).tan()).max(1e-6),
-        };
-        if current != Some(&view) {
-            commands.entity(entity).insert(view);
-        }
-    }
 }
 
 fn load_default_set(mut settings: ResMut<WindSettings>, server: Res<AssetServer>) {
@@ -152,7 +106,7 @@ fn move_rings(
     culling: Res<ForestCulling>,
     instances: Query<(&TreeInstance, &GlobalTransform)>,
     models: Res<Assets<TreeModel>>,
-    views: Query<&WindView>,
+    views: Query<&LodView>,
     mut table: ResMut<RingOffsetTable>,
     mut associations: Local<HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), Vec<RingMotion>>>,
 ) {

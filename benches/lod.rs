@@ -1,0 +1,100 @@
+//! The Sherwood stages of a whole frame (`app.update()` of a headless app: animate, cull,
+//! value, budget, select) for forests of 2 000, 20 000 and 100 000 trees, every tree in
+//! view, in TCLOD mode at a 100 ms target. Goal (release): under 2 ms for 20 000 visible
+//! trees. `cargo bench --no-default-features --bench lod`.
+//!
+//! After the timings it prints the per-stage times of the last frame from
+//! `LodDiagnostics`.
+
+use std::time::Duration;
+
+use bevy::asset::AssetPlugin;
+use bevy::prelude::*;
+use bevy_sherwood::culling::FrustumPlanes;
+use bevy_sherwood::ecosystem::EcosystemDesc;
+use bevy_sherwood::prelude::*;
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+
+fn forest_app(trees: u32) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
+            ..Default::default()
+        },
+        TransformPlugin,
+        SherwoodPlugins,
+    ));
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/forests/default.ecosystem.ron"
+    ))
+    .unwrap();
+    let mut desc = EcosystemDesc::from_ron_str(&text).unwrap();
+    let species = desc.species.len() as u32;
+    for s in &mut desc.species {
+        s.count = trees / species;
+    }
+    // Same density as the default forest.
+    desc.terrain.size *= (trees as f32 / 600.0).sqrt();
+    desc.culling_depth = 6;
+    let size = desc.terrain.size;
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<Ecosystem>>()
+        .add(Ecosystem(desc));
+    app.world_mut().spawn(Forest(handle));
+    // High above the centre, looking down: every tree in view.
+    let eye = Vec3::new(size / 2.0, size * 0.9, size / 2.0 + 1.0);
+    let target = Vec3::new(size / 2.0, 0.0, size / 2.0);
+    let fov = 1.2;
+    let clip_from_world = Mat4::perspective_infinite_reverse_rh(fov, 1.0, 0.1)
+        * Mat4::look_at_rh(eye, target, Vec3::Y);
+    app.world_mut().spawn((
+        CullView(FrustumPlanes::from_clip_from_world(clip_from_world)),
+        LodView {
+            position: eye,
+            forward: (target - eye).normalize(),
+            focal_pixels: 540.0 / (2.0 * (fov * 0.5).tan()),
+        },
+    ));
+    for _ in 0..20_000 {
+        app.update();
+        if app.world().resource::<LodDiagnostics>().visible_instances > 0 {
+            return app;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("the forest never loaded");
+}
+
+fn stages(c: &mut Criterion) {
+    let mut group = c.benchmark_group("sherwood_frame");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(10));
+    let mut reports = Vec::new();
+    for trees in [2_000, 20_000, 100_000] {
+        let mut app = forest_app(trees);
+        group.bench_with_input(BenchmarkId::from_parameter(trees), &trees, |b, _| {
+            b.iter(|| app.update());
+        });
+        reports.push((trees, app.world().resource::<LodDiagnostics>().clone()));
+    }
+    group.finish();
+    for (trees, d) in reports {
+        println!(
+            "{trees} trees: {} visible, stages value {:.2} ms, budget {:.2} ms, select {:.2} ms; {} triangles, {} lines, {} points",
+            d.visible_instances,
+            d.value_stage_ms,
+            d.budget_stage_ms,
+            d.select_stage_ms,
+            d.counts.triangles,
+            d.counts.lines,
+            d.counts.points
+        );
+    }
+}
+
+criterion_group!(benches, stages);
+criterion_main!(benches);

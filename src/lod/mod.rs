@@ -1,0 +1,697 @@
+//! Time-critical level of detail in the ECS: a value per visible object, the frame's
+//! rendering time handed out by Robin Hood, and per object the representation that fits,
+//! written into each instance's [`TreeDrawList`].
+//!
+//! Each tree is two objects — its trunk and its leaves — with their own values and
+//! complexities. Per frame, in [`SherwoodSystems`] order:
+//!
+//! * **Value**: for each visible instance ([`ForestCulling`]) the configured value
+//!   function of its trunk (at the trunk's area-density centre) and of its leaves (the sum
+//!   over its visible leaf groups, each at its own depth), times the part's importance.
+//! * **Budget**: the logic time from the cost model's logic table, the rendering time
+//!   from the frame-time model (P-5..P-7), less the fixed per-frame cost of the pass's
+//!   draws; then Robin Hood walks the objects simple → complex (object types are ranked
+//!   once when models change) and each object's search (see [`select`]) picks what fits
+//!   its share, the remainder passing on. The search runs inside the hand-out because a
+//!   remainder is only known once the object has chosen.
+//! * **Select**: the chosen draw lists are copied into the instances' components;
+//!   invisible instances get empty lists. In `Static` and `Unlimited` mode no time is
+//!   handed out and this stage does all the work.
+//!
+//! The cost model is the default [`Calibration`] until the calibration lands; its
+//! per-primitive costs predict, its logic table estimates `t_l`.
+
+pub mod select;
+
+use std::time::Instant;
+
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::SherwoodSystems;
+use crate::budget::{
+    Allocation, BudgetProblem, BudgetStrategy, Fit, FrameTimeModel, FunkhouserIncremental,
+    FunkhouserSequin, Level, ObjectDesc, PreviousSelection, RobinHood, TriangleBudget,
+    ValueFunction, ValueInputs, ValueModel,
+};
+use crate::cost::Calibration;
+use crate::culling::{ForestCulling, InstanceVisibility};
+use crate::draw::{PrimitiveCounts, TreeDrawList};
+use crate::ecosystem::TreeInstance;
+use crate::tree::{PixelRange, TreeModel};
+use crate::view::LodView;
+
+use select::{LeafMethod, PrimitiveCosts, TreeView, VisibleGroup};
+
+/// How objects are drawn.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
+pub enum LodMode {
+    /// Time-critical with points-and-lines LOD (thesis §6.5): thin trunk segments as lines
+    /// of several widths, leaves as points of several sizes, as many triangles as fit.
+    #[default]
+    Tclod,
+    /// Time-critical with triangles only (thesis §6.4): as many as fit, trunk from the
+    /// thickest segment down, leaf groups from their far leaves in.
+    Tc,
+    /// The pixel-driven points-and-lines LOD (thesis §4.4) with no budget: a baseline.
+    Static,
+    /// Everything at full detail: the reference.
+    Unlimited,
+}
+
+/// Which strategy hands out the rendering time in the time-critical modes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
+pub enum StrategyKind {
+    /// Robin Hood: every visible object gets time in proportion to its value, remainders
+    /// pass on; nothing visible is dropped.
+    #[default]
+    RobinHood,
+    /// Funkhouser–Séquin's greedy over each object's ladder; may drop objects.
+    FunkhouserSequin,
+    /// Funkhouser–Séquin's incremental variant, starting from last frame's choice.
+    FunkhouserIncremental,
+    /// The triangle-budget greedy.
+    TriangleBudget,
+}
+
+/// The frame's budget and how it is spent. Changing it takes effect on the next frame.
+#[derive(Resource, Clone, Debug, PartialEq, Serialize, Deserialize, Reflect)]
+#[reflect(Resource)]
+#[serde(default)]
+pub struct FrameBudget {
+    /// Target frame time in milliseconds (default 100: this crate's reference machine
+    /// renders in software). A target at or below the logic time leaves no rendering time:
+    /// everything is drawn at its cheapest and a warning is logged once.
+    pub target_ms: f32,
+    /// How objects are drawn (default TCLOD).
+    pub mode: LodMode,
+    /// Who hands out the time in the time-critical modes (default Robin Hood). The
+    /// ladder strategies see each object as a ladder of its representations at
+    /// [`LADDER_FRACTIONS`] of its full cost, with benefit `value · √(cost / full cost)`.
+    pub strategy: StrategyKind,
+    /// Value function (default P-11).
+    pub value: ValueFunction,
+    /// Importance of trunks (default 1).
+    pub trunk_importance: f32,
+    /// Importance of leaves (default 1/16, as in the paper).
+    pub leaf_importance: f32,
+    /// Line widths in pixels (default 1–20).
+    pub line_widths: PixelRange,
+    /// Point sizes in pixels (default 1–20). Static mode uses the smallest.
+    pub point_sizes: PixelRange,
+    /// The frame-time model's machine constant C (P-7; default 1).
+    pub machine_constant: f32,
+}
+
+impl Default for FrameBudget {
+    fn default() -> Self {
+        Self {
+            target_ms: 100.0,
+            mode: LodMode::Tclod,
+            strategy: StrategyKind::RobinHood,
+            value: ValueFunction::P11,
+            trunk_importance: 1.0,
+            leaf_importance: 1.0 / 16.0,
+            line_widths: PixelRange::default(),
+            point_sizes: PixelRange::default(),
+            machine_constant: 1.0,
+        }
+    }
+}
+
+/// The fractions of an object's full-detail time at which its ladder's rungs are searched
+/// for the ladder strategies (best → cheapest; 0 gives the cheapest representation).
+pub const LADDER_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
+
+/// The costs the budget predicts with. Until a calibration is loaded, the documented
+/// [`Calibration::default`].
+#[derive(Resource, Clone, Debug, Default)]
+pub struct LodCostModel {
+    /// Per-primitive and logic costs.
+    pub calibration: Calibration,
+}
+
+/// What the LOD stages did in the last frame.
+#[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource)]
+pub struct LodDiagnostics {
+    /// Visible objects (a tree's trunk and leaves count separately).
+    pub visible_objects: u32,
+    /// Visible tree instances.
+    pub visible_instances: u32,
+    /// Estimated logic time, ms.
+    pub logic_ms: f32,
+    /// Rendering time handed out, ms.
+    pub render_budget_ms: f32,
+    /// Predicted rendering time of the selection, ms.
+    pub predicted_render_ms: f32,
+    /// Predicted frame time (T-6.1 of logic and predicted rendering), ms.
+    pub predicted_frame_ms: f32,
+    /// Measured time of the previous frame, ms.
+    pub measured_frame_ms: f32,
+    /// Rendering time handed out but not used by anyone, ms.
+    pub wasted_ms: f32,
+    /// Predicted rendering time beyond the rendering time, ms: cheapest representations
+    /// that did not fit (Robin Hood draws them truncated, the triangle budget never goes
+    /// below them).
+    pub overrun_ms: f32,
+    /// Primitives selected.
+    pub counts: PrimitiveCounts,
+    /// Objects drawn at their cheapest representation although it did not fit.
+    pub truncated: u32,
+    /// Visible objects drawn with nothing (always 0 with Robin Hood).
+    pub undrawn: u32,
+    /// Time of the Value stage, ms.
+    pub value_stage_ms: f32,
+    /// Time of the Budget stage, ms.
+    pub budget_stage_ms: f32,
+    /// Time of the Select stage, ms.
+    pub select_stage_ms: f32,
+}
+
+/// Adds the Value, Budget and Select stages, [`FrameBudget`], [`LodCostModel`] and
+/// [`LodDiagnostics`]. Part of [`SherwoodPlugins`](crate::SherwoodPlugins); needs the
+/// culling plugin.
+#[derive(Default)]
+pub struct LodPlugin;
+
+impl Plugin for LodPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<FrameBudget>()
+            .register_type::<LodDiagnostics>()
+            .init_resource::<FrameBudget>()
+            .init_resource::<LodCostModel>()
+            .init_resource::<LodDiagnostics>()
+            .init_resource::<LodFrame>()
+            .add_systems(
+                PostUpdate,
+                (
+                    (give_draw_lists, value_objects)
+                        .chain()
+                        .in_set(SherwoodSystems::Value),
+                    hand_out_time.in_set(SherwoodSystems::Budget),
+                    write_draw_lists.in_set(SherwoodSystems::Select),
+                ),
+            );
+    }
+}
+
+/// One visible part of a tree.
+#[derive(Clone, Copy, Debug)]
+struct Object {
+    /// Index into [`LodFrame::trees`].
+    tree: u32,
+    leaves: bool,
+}
+
+/// One visible tree this frame.
+struct VisibleTree {
+    entity: Entity,
+    model: AssetId<TreeModel>,
+    view: TreeView,
+    trunk_visible: bool,
+    groups: core::ops::Range<u32>,
+}
+
+/// The frame's working state, kept between frames to reuse its allocations.
+#[derive(Resource, Default)]
+struct LodFrame {
+    trees: Vec<VisibleTree>,
+    groups: Vec<VisibleGroup>,
+    objects: Vec<Object>,
+    values: Vec<f32>,
+    complexities: Vec<f32>,
+    /// Per tree, the list being chosen.
+    lists: Vec<TreeDrawList>,
+    allocations: Vec<Allocation>,
+    robin_hood: RobinHood,
+    funkhouser: FunkhouserSequin,
+    incremental: FunkhouserIncremental,
+    triangle_budget: TriangleBudget,
+    problem: BudgetProblem,
+    /// Per object, the time of each ladder rung (ladder strategies).
+    rung_times: Vec<[f32; LADDER_FRACTIONS.len()]>,
+    /// Last frame's rung per (instance, leaves), for the incremental strategies.
+    previous: HashMap<(Entity, bool), u32>,
+    next_previous: HashMap<(Entity, bool), u32>,
+    scratch: TreeDrawList,
+    /// Complexity rank of each (model, leaves) object type; rebuilt when models change.
+    type_rank: HashMap<(AssetId<TreeModel>, bool), (u32, f32)>,
+    ranked_models: usize,
+    value_ms: f32,
+    warned_target: bool,
+}
+
+fn give_draw_lists(
+    mut commands: Commands,
+    new: Query<Entity, (With<TreeInstance>, Without<TreeDrawList>)>,
+) {
+    for entity in &new {
+        commands.entity(entity).insert(TreeDrawList::default());
+    }
+}
+
+fn object_types(
+    models: &Assets<TreeModel>,
+    costs: &PrimitiveCosts,
+) -> HashMap<(AssetId<TreeModel>, bool), (u32, f32)> {
+    // complexity(O): the full-detail time at one constant projected area for everyone.
+    const AREA: f32 = 4.0;
+    let mut types: Vec<((AssetId<TreeModel>, bool), f32)> = models
+        .iter()
+        .flat_map(|(id, m)| {
+            [
+                (
+                    (id, false),
+                    costs.triangles(m.trunk_triangle_count() as u32, AREA),
+                ),
+                (
+                    (id, true),
+                    costs.triangles(m.leaf_triangle_count() as u32, AREA),
+                ),
+            ]
+        })
+        .collect();
+    types.sort_by(|a, b| a.1.total_cmp(&b.1));
+    types
+        .into_iter()
+        .enumerate()
+        .map(|(rank, (key, complexity))| (key, (rank as u32, complexity)))
+        .collect()
+}
+
+fn value_objects(
+    mut frame: ResMut<LodFrame>,
+    budget: Res<FrameBudget>,
+    cost_model: Res<LodCostModel>,
+    culling: Option<Res<ForestCulling>>,
+    views: Query<&LodView>,
+    instances: Query<&TreeInstance>,
+    models: Res<Assets<TreeModel>>,
+) {
+    let start = Instant::now();
+    let frame = &mut *frame;
+    frame.trees.clear();
+    frame.groups.clear();
+    frame.objects.clear();
+    frame.values.clear();
+    frame.complexities.clear();
+    let (Some(culling), Some(view)) = (culling, views.iter().next()) else {
+        return;
+    };
+    if frame.ranked_models != models.len() || frame.type_rank.is_empty() {
+        let costs = PrimitiveCosts::from_calibration(&cost_model.calibration, 1.0);
+        frame.type_rank = object_types(&models, &costs);
+        frame.ranked_models = models.len();
+    }
+    let projection = view.projection();
+    let value_of = |area: f32, at: Vec3, importance: f32| {
+        budget.value.value(&ValueInputs {
+            area,
+            depth: view.depth(at),
+            distance: at.distance(view.position),
+            importance,
+        })
+    };
+    let mut keyed: Vec<(u32, f32, Object, f32)> = Vec::new();
+    for (i, (&entity, visibility)) in culling
+        .entities
+        .iter()
+        .zip(&culling.result.visibility)
+        .enumerate()
+    {
+        let trunk_visible = match visibility {
+            InstanceVisibility::Invisible => continue,
+            InstanceVisibility::Full => true,
+            InstanceVisibility::Partial { trunk, .. } => *trunk,
+        };
+        let (Ok(instance), Some(cull)) = (instances.get(entity), culling.instances.get(i)) else {
+            continue;
+        };
+        let Some(model) = models.get(&instance.model) else {
+            continue;
+        };
+        let transform = cull.transform;
+        let scale = transform.matrix3.x_axis.length();
+        let tree = frame.trees.len() as u32;
+        let trunk_center = transform.transform_point3(model.trunk_area_center);
+        let first_group = frame.groups.len() as u32;
+        let leaf_area = select::mean_leaf_area(model) * scale * scale;
+        let mut leaves_value = 0.0;
+        for (g, group) in model.leaf_groups.iter().enumerate() {
+            if !culling.result.group_visible(i, g) {
+                continue;
+            }
+            let center = transform.transform_point3(group.bounds.center);
+            let n = group.leaves.len() as f32;
+            leaves_value += value_of(n * leaf_area, center, budget.leaf_importance);
+            frame.groups.push(VisibleGroup {
+                group: g as u32,
+                depth: view.depth(center).max(crate::budget::MIN_DEPTH),
+            });
+        }
+        let groups = first_group..frame.groups.len() as u32;
+        let id = instance.model.id();
+        let rank = |leaves: bool| {
+            frame
+                .type_rank
+                .get(&(id, leaves))
+                .copied()
+                .unwrap_or((0, 0.0))
+        };
+        if trunk_visible && model.trunk_triangle_count() > 0 {
+            let area = model.mean_trunk_triangle_area
+                * model.trunk_triangle_count() as f32
+                * scale
+                * scale;
+            let (r, c) = rank(false);
+            keyed.push((
+                r,
+                c,
+                Object {
+                    tree,
+                    leaves: false,
+                },
+                value_of(area, trunk_center, budget.trunk_importance),
+            ));
+        }
+        if !groups.is_empty() {
+            let (r, c) = rank(true);
+            keyed.push((r, c, Object { tree, leaves: true }, leaves_value));
+        }
+        frame.trees.push(VisibleTree {
+            entity,
+            model: id,
+            view: TreeView {
+                scale,
+                trunk_depth: view.depth(trunk_center).max(crate::budget::MIN_DEPTH),
+                projection,
+            },
+            trunk_visible,
+            groups,
+        });
+    }
+    // Simple → complex: types are few, so a stable sort by rank keeps it cheap and the
+    // complexities arrive sorted (Robin Hood then runs in O(n)).
+    radsort::sort_by_key(&mut keyed, |k| k.0);
+    for (_, complexity, object, value) in keyed {
+        frame.objects.push(object);
+        frame.complexities.push(complexity);
+        frame.values.push(value);
+    }
+    frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
+}
+
+fn hand_out_time(
+    mut frame: ResMut<LodFrame>,
+    budget: Res<FrameBudget>,
+    cost_model: Res<LodCostModel>,
+    models: Res<Assets<TreeModel>>,
+    time: Res<Time<Real>>,
+    mut diagnostics: ResMut<LodDiagnostics>,
+) {
+    let start = Instant::now();
+    let frame = &mut *frame;
+    let calibration = &cost_model.calibration;
+    let costs = PrimitiveCosts::from_calibration(calibration, 1.0);
+    let logic = calibration.logic.time(frame.trees.len() as u32);
+    let target = (budget.target_ms.max(0.0)) / 1000.0;
+    let model = FrameTimeModel {
+        machine_constant: budget.machine_constant,
+    };
+    if target <= logic && budget.mode != LodMode::Unlimited && budget.mode != LodMode::Static {
+        if !frame.warned_target {
+            warn!(
+                "FrameBudget: target {:.1} ms is at or below the logic time {:.1} ms; every object is drawn at its cheapest",
+                budget.target_ms,
+                logic * 1000.0
+            );
+            frame.warned_target = true;
+        }
+    } else {
+        frame.warned_target = false;
+    }
+    let fixed = calibration.triangles.fixed
+        + calibration.lines.first().map_or(0.0, |c| c.fixed)
+        + calibration.points.first().map_or(0.0, |c| c.fixed);
+    let rendering = (model.rendering_time(logic, target) - fixed.max(0.0)).max(0.0);
+
+    // Per tree, a fresh list.
+    frame
+        .lists
+        .resize_with(frame.trees.len(), TreeDrawList::default);
+    for list in &mut frame.lists[..frame.trees.len()] {
+        list.clear();
+    }
+
+    let mut predicted = 0.0f32;
+    let mut truncated = 0;
+    let mut wasted = 0.0;
+    let mut undrawn = 0;
+    match budget.mode {
+        LodMode::Unlimited | LodMode::Static => {
+            for (tree, list) in frame.trees.iter().zip(&mut frame.lists) {
+                let Some(m) = models.get(tree.model) else {
+                    continue;
+                };
+                let groups = &frame.groups[tree.groups.start as usize..tree.groups.end as usize];
+                if budget.mode == LodMode::Unlimited {
+                    if tree.trunk_visible {
+                        list.trunk_triangles = 0..m.trunk_triangle_count() as u32;
+                        let area = select::trunk_triangle_area(m, &tree.view);
+                        predicted += costs.triangles(list.trunk_triangles.len() as u32, area);
+                    }
+                    let per_leaf = m.leaf_triangle_count() as f32 / m.leaves.len().max(1) as f32;
+                    for g in groups {
+                        let r = m.leaf_groups[g.group as usize].leaves.clone();
+                        let n = r.len() as u32;
+                        match list.leaf_triangles.last_mut() {
+                            Some(last) if last.end == r.start => last.end = r.end,
+                            _ => list.leaf_triangles.push(r),
+                        }
+                        let pixels =
+                            select::group_area(m, &tree.view, 1, g.depth) / per_leaf.max(1.0);
+                        predicted += costs.triangles(1, pixels) * per_leaf * n as f32;
+                    }
+                } else {
+                    if tree.trunk_visible {
+                        predicted += static_trunk(m, &tree.view, &costs, budget.line_widths, list);
+                    }
+                    predicted += select::leaves(
+                        m,
+                        &tree.view,
+                        &costs,
+                        LeafMethod::Static(budget.point_sizes.min.max(1)),
+                        groups,
+                        0.0,
+                        list,
+                    )
+                    .cost;
+                }
+            }
+        }
+        LodMode::Tc | LodMode::Tclod => {
+            let tclod = budget.mode == LodMode::Tclod;
+            let (trees, groups, objects, lists) = (
+                &frame.trees,
+                &frame.groups,
+                &frame.objects,
+                &mut frame.lists,
+            );
+            // What object `i` draws with `given` seconds, written into `list`.
+            let search = |i: usize, given: f32, list: &mut TreeDrawList| {
+                let object = objects[i];
+                let tree = &trees[object.tree as usize];
+                let Some(m) = models.get(tree.model) else {
+                    return select::Selected::default();
+                };
+                if object.leaves {
+                    let method = if tclod {
+                        LeafMethod::Tclod(budget.point_sizes)
+                    } else {
+                        LeafMethod::Tc
+                    };
+                    let g = &groups[tree.groups.start as usize..tree.groups.end as usize];
+                    select::leaves(m, &tree.view, &costs, method, g, given, list)
+                } else if tclod {
+                    select::trunk_tclod(m, &tree.view, &costs, budget.line_widths, given, list)
+                } else {
+                    select::trunk_tc(m, &tree.view, &costs, given, list)
+                }
+            };
+            let stats = if budget.strategy == StrategyKind::RobinHood {
+                frame.robin_hood.distribute_with(
+                    &frame.values,
+                    &frame.complexities,
+                    rendering,
+                    |i, given| {
+                        let chosen = search(i, given, &mut lists[objects[i].tree as usize]);
+                        Fit {
+                            used: chosen.cost,
+                            level: 0,
+                            truncated: chosen.truncated,
+                        }
+                    },
+                    &mut frame.allocations,
+                )
+            } else {
+                // Ladders: each object's representations at fractions of its full cost.
+                frame.problem.clear();
+                frame.rung_times.clear();
+                frame.next_previous.clear();
+                let scratch = &mut frame.scratch;
+                for (i, object) in objects.iter().enumerate() {
+                    let full = search(i, 1.0e6, scratch).cost;
+                    let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
+                    let mut times = [0.0; LADDER_FRACTIONS.len()];
+                    let mut previous_cost = f32::INFINITY;
+                    for (j, fraction) in LADDER_FRACTIONS.iter().enumerate() {
+                        times[j] = full * fraction;
+                        let cost = search(i, times[j], scratch).cost.min(previous_cost);
+                        previous_cost = cost;
+                        let accuracy = if full > 0.0 {
+                            (cost / full).sqrt()
+                        } else {
+                            1.0
+                        };
+                        ladder[j] = Level::new(cost, frame.values[i] * accuracy);
+                    }
+                    let key = (trees[object.tree as usize].entity, object.leaves);
+                    let previous = frame
+                        .previous
+                        .get(&key)
+                        .map_or(PreviousSelection::New, |&l| PreviousSelection::Level(l));
+                    let desc = ObjectDesc {
+                        value: frame.values[i],
+                        complexity: frame.complexities[i],
+                        previous,
+                    };
+                    if frame.problem.push_object(desc, &ladder).is_err() {
+                        // Not expected: values and costs are finite by construction. Keep
+                        // the indices aligned with a free, worthless object.
+                        let _ = frame
+                            .problem
+                            .push_object(ObjectDesc::default(), &[Level::new(0.0, 0.0)]);
+                    }
+                    frame.rung_times.push(times);
+                }
+                let strategy: &mut dyn BudgetStrategy = match budget.strategy {
+                    StrategyKind::FunkhouserSequin => &mut frame.funkhouser,
+                    StrategyKind::FunkhouserIncremental => &mut frame.incremental,
+                    _ => &mut frame.triangle_budget,
+                };
+                let stats = strategy.distribute(&frame.problem, rendering, &mut frame.allocations);
+                for (i, allocation) in frame.allocations.iter().enumerate() {
+                    let object = objects[i];
+                    if let Some(level) = allocation.level {
+                        let time = frame.rung_times[i][level as usize];
+                        search(i, time, &mut lists[object.tree as usize]);
+                        let key = (trees[object.tree as usize].entity, object.leaves);
+                        frame.next_previous.insert(key, level);
+                    }
+                }
+                core::mem::swap(&mut frame.previous, &mut frame.next_previous);
+                stats
+            };
+            predicted = stats.used;
+            truncated = stats.truncated;
+            undrawn = stats.dropped;
+            wasted = stats.wasted;
+        }
+    }
+
+    let mut counts = PrimitiveCounts::default();
+    for (tree, list) in frame.trees.iter().zip(&frame.lists) {
+        if let Some(m) = models.get(tree.model) {
+            counts += list.counts(m);
+        }
+    }
+    *diagnostics = LodDiagnostics {
+        visible_objects: frame.objects.len() as u32,
+        visible_instances: frame.trees.len() as u32,
+        logic_ms: logic * 1000.0,
+        render_budget_ms: rendering * 1000.0,
+        predicted_render_ms: predicted * 1000.0,
+        predicted_frame_ms: crate::budget::combined_frame_time(logic, predicted + fixed) * 1000.0,
+        measured_frame_ms: time.delta_secs() * 1000.0,
+        wasted_ms: wasted * 1000.0,
+        overrun_ms: (predicted - rendering).max(0.0) * 1000.0,
+        counts,
+        truncated,
+        undrawn,
+        value_stage_ms: frame.value_ms,
+        budget_stage_ms: start.elapsed().as_secs_f32() * 1000.0,
+        select_stage_ms: 0.0,
+    };
+}
+
+fn static_trunk(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    widths: PixelRange,
+    list: &mut TreeDrawList,
+) -> f32 {
+    let lod = crate::tree::trunk_lod(
+        model,
+        view.scale,
+        view.trunk_depth,
+        &view.projection,
+        widths,
+    );
+    list.trunk_lines.clear();
+    let px = view.projection.pixels(view.scale, view.trunk_depth);
+    let mut cost = 0.0;
+    for (w, r) in lod.lines {
+        let c = &model.segments.cumulative_length;
+        let before = if r.start == 0 {
+            0.0
+        } else {
+            c[r.start as usize - 1]
+        };
+        let length = (c[r.end as usize - 1] - before) * px * select::PROJECTED_LENGTH_FACTOR;
+        cost += costs.lines(w, r.end - r.start, length);
+        list.trunk_lines.push(crate::draw::LineRun {
+            segments: r,
+            width: w,
+        });
+    }
+    let offsets = &model.segments.triangle_offsets;
+    let total = offsets.last().copied().unwrap_or(0);
+    let first = offsets
+        .get(lod.triangles.start as usize)
+        .copied()
+        .unwrap_or(total);
+    list.trunk_triangles = first..total;
+    cost + costs.triangles(total - first, select::trunk_triangle_area(model, view))
+}
+
+fn write_draw_lists(
+    mut frame: ResMut<LodFrame>,
+    culling: Option<Res<ForestCulling>>,
+    mut lists: Query<&mut TreeDrawList>,
+    mut diagnostics: ResMut<LodDiagnostics>,
+) {
+    let start = Instant::now();
+    let frame = &mut *frame;
+    let Some(culling) = culling else {
+        return;
+    };
+    // Invisible instances draw nothing; visible ones get their chosen list.
+    let mut next = 0;
+    for &entity in &culling.entities {
+        let Ok(mut list) = lists.get_mut(entity) else {
+            continue;
+        };
+        if next < frame.trees.len() && frame.trees[next].entity == entity {
+            if *list != frame.lists[next] {
+                list.clone_from(&frame.lists[next]);
+            }
+            next += 1;
+        } else if !list.is_empty() {
+            list.clear();
+        }
+    }
+    diagnostics.select_stage_ms = start.elapsed().as_secs_f32() * 1000.0;
+}

@@ -1,0 +1,569 @@
+//! Per-object representation searches (pure): given the time an object was handed, the
+//! best representation of a trunk or of a tree's leaves that fits, written into a
+//! [`TreeDrawList`].
+//!
+//! * **TC** (thesis §6.4): triangles only — the trunk from its thickest segment down,
+//!   each leaf group from its far leaves in.
+//! * **TCLOD** (thesis §6.5): the trunk's thin segments as lines of several widths and
+//!   leaves as points of several sizes, with as many triangles as the time allows.
+//! * **Static** (thesis §4.4): the pixel-driven points-and-lines LOD, no time involved.
+//!
+//! Every search runs in time independent of the number of segments or leaves (a few
+//! binary searches over the model's prefix arrays), so a frame's selection costs
+//! O(visible trees × visible leaf groups).
+
+use core::ops::Range;
+
+use crate::cost::Calibration;
+use crate::draw::{LineRun, PointRun, TreeDrawList};
+use crate::tree::{PixelRange, Projection, TreeModel};
+
+/// Mean ratio of a segment's projected length to its length: trunks and branches are
+/// seen from the side more often than end-on.
+pub const PROJECTED_LENGTH_FACTOR: f32 = 0.8;
+
+/// A leaf group's projected area over `n · a_h · s² / z²`: half the leaves face the
+/// camera (thesis T-4.4).
+const LEAF_FACING: f32 = 1.0 / 1.8;
+
+/// Predicted time of primitives, per primitive (fixed per-frame parts are accounted for
+/// once per frame, not here), in seconds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PrimitiveCosts {
+    /// Per triangle.
+    pub triangle: f32,
+    /// Per covered pixel of triangles.
+    pub triangle_pixel: f32,
+    /// Per line, by width (index 0 = 1 px).
+    pub line: Vec<f32>,
+    /// Per covered pixel of lines, by width.
+    pub line_pixel: Vec<f32>,
+    /// Per point, by size (index 0 = 1 px).
+    pub point: Vec<f32>,
+    /// Per covered pixel of points, by size.
+    pub point_pixel: Vec<f32>,
+}
+
+impl PrimitiveCosts {
+    /// The per-primitive parts of a calibration, each scaled by `scale` (the machine
+    /// constant or an online correction).
+    pub fn from_calibration(calibration: &Calibration, scale: f32) -> Self {
+        let scale = if scale.is_finite() && scale > 0.0 {
+            scale
+        } else {
+            1.0
+        };
+        let clean = |x: f32| {
+            if x.is_finite() {
+                x.max(0.0) * scale
+            } else {
+                0.0
+            }
+        };
+        Self {
+            triangle: clean(calibration.triangles.per_primitive),
+            triangle_pixel: clean(calibration.triangles.per_pixel),
+            line: calibration
+                .lines
+                .iter()
+                .map(|c| clean(c.per_primitive))
+                .collect(),
+            line_pixel: calibration
+                .lines
+                .iter()
+                .map(|c| clean(c.per_pixel))
+                .collect(),
+            point: calibration
+                .points
+                .iter()
+                .map(|c| clean(c.per_primitive))
+                .collect(),
+            point_pixel: calibration
+                .points
+                .iter()
+                .map(|c| clean(c.per_pixel))
+                .collect(),
+        }
+    }
+
+    fn pick(values: &[f32], size: u32) -> f32 {
+        let i = (size.max(1) as usize - 1).min(values.len().saturating_sub(1));
+        values.get(i).copied().unwrap_or(0.0)
+    }
+
+    /// `count` triangles of `area` pixels each.
+    pub fn triangles(&self, count: u32, area: f32) -> f32 {
+        count as f32 * (self.triangle + self.triangle_pixel * area)
+    }
+
+    /// `count` lines `width` pixels wide, `length` pixels long in total.
+    pub fn lines(&self, width: u32, count: u32, length: f32) -> f32 {
+        count as f32 * Self::pick(&self.line, width)
+            + Self::pick(&self.line_pixel, width) * length * width as f32
+    }
+
+    /// `count` points of `size` pixels.
+    pub fn points(&self, size: u32, count: u32) -> f32 {
+        let s = size as f32;
+        count as f32 * (Self::pick(&self.point, size) + Self::pick(&self.point_pixel, size) * s * s)
+    }
+}
+
+/// How one tree instance is seen this frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TreeView {
+    /// Uniform instance scale.
+    pub scale: f32,
+    /// Depth of the trunk's area-density centre.
+    pub trunk_depth: f32,
+    /// The camera's projection.
+    pub projection: Projection,
+}
+
+/// What a search drew: its predicted time, and whether even the cheapest representation
+/// overran the time it had.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Selected {
+    /// Predicted rendering time, seconds.
+    pub cost: f32,
+    /// The time was below the cheapest representation, which is drawn anyway.
+    pub truncated: bool,
+}
+
+fn pixels_per_unit(view: &TreeView, depth: f32) -> f32 {
+    view.projection.pixels(view.scale, depth)
+}
+
+/// Trunk triangles `first..total` of a trunk whose triangles project `area` pixels each.
+fn trunk_triangle_cost(
+    model: &TreeModel,
+    costs: &PrimitiveCosts,
+    from_segment: u32,
+    area: f32,
+) -> f32 {
+    let offsets = &model.segments.triangle_offsets;
+    let total = offsets.last().copied().unwrap_or(0);
+    let first = offsets.get(from_segment as usize).copied().unwrap_or(total);
+    costs.triangles(total - first, area)
+}
+
+/// Length of segments `range` (world units, unscaled).
+fn segment_length(model: &TreeModel, range: &Range<u32>) -> f32 {
+    let cumulative = &model.segments.cumulative_length;
+    if range.is_empty() {
+        return 0.0;
+    }
+    let upto = |s: u32| {
+        if s == 0 {
+            0.0
+        } else {
+            cumulative[s as usize - 1]
+        }
+    };
+    upto(range.end) - upto(range.start)
+}
+
+/// The trunk as triangles only, the thickest `count` segments' worth: triangle range.
+fn thick_end(model: &TreeModel, from_segment: u32) -> Range<u32> {
+    let offsets = &model.segments.triangle_offsets;
+    let total = offsets.last().copied().unwrap_or(0);
+    offsets.get(from_segment as usize).copied().unwrap_or(total)..total
+}
+
+/// TC trunk: as many triangles as `time` pays for, from the thickest segment down; at
+/// least the thickest segment (truncated when even that does not fit).
+pub fn trunk_tc(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Selected {
+    out.trunk_lines.clear();
+    let total = model.trunk_triangle_count() as u32;
+    let area = trunk_triangle_area(model, view);
+    let each = costs.triangles(1, area);
+    let affordable = if each > 0.0 {
+        (time.max(0.0) / each).floor().min(total as f32) as u32
+    } else {
+        total
+    };
+    // The thickest segment that owns triangles is the minimum.
+    let minimum = model
+        .segments
+        .triangle_offsets
+        .windows(2)
+        .rev()
+        .map(|w| w[1] - w[0])
+        .find(|&n| n > 0)
+        .unwrap_or(0);
+    let count = affordable.max(minimum.min(total));
+    out.trunk_triangles = total - count..total;
+    Selected {
+        cost: costs.triangles(count, area),
+        truncated: affordable < minimum.min(total),
+    }
+}
+
+/// Projected area in pixels of one trunk triangle of this instance.
+pub fn trunk_triangle_area(model: &TreeModel, view: &TreeView) -> f32 {
+    let p = pixels_per_unit(view, view.trunk_depth);
+    model.mean_trunk_triangle_area * p * p
+}
+
+/// Line widths assigned to the trunk's segments: runs `(width, segments)` thin → thick,
+/// the static LOD's runs extended over segments `extend_from..` at the widest width.
+struct LinePlan {
+    runs: Vec<(u32, Range<u32>)>,
+    /// Segments below this are dropped.
+    dropped: u32,
+}
+
+impl LinePlan {
+    /// Cost of drawing segments `dropped..k` as lines.
+    fn lines_cost(&self, model: &TreeModel, costs: &PrimitiveCosts, px: f32, k: u32) -> f32 {
+        let mut cost = 0.0;
+        for (w, r) in &self.runs {
+            let r = r.start.max(self.dropped)..r.end.min(k);
+            if r.is_empty() {
+                continue;
+            }
+            let length = segment_length(model, &r) * px * PROJECTED_LENGTH_FACTOR;
+            cost += costs.lines(*w, r.end - r.start, length);
+        }
+        cost
+    }
+
+    fn write(&self, k: u32, out: &mut TreeDrawList) {
+        out.trunk_lines.clear();
+        for (w, r) in &self.runs {
+            let r = r.start.max(self.dropped)..r.end.min(k);
+            if !r.is_empty() {
+                out.trunk_lines.push(LineRun {
+                    segments: r,
+                    width: *w,
+                });
+            }
+        }
+    }
+}
+
+/// TCLOD trunk (thesis §6.5): the static LOD's lines of several widths for the thin
+/// segments and triangles for the rest. With time to spare, line segments go back to
+/// triangles, thickest first, as many as fit (the integer solution of T-6.21..6.24);
+/// short of time, the thinnest lines are removed until it fits, and if the triangles
+/// alone are too dear the trunk is drawn as in TC from the thick end. A trunk too thick
+/// for the widest line (seen from close) is drawn as in TC.
+pub fn trunk_tclod(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    widths: PixelRange,
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Selected {
+    let n = model.segments.len() as u32;
+    let static_lod = crate::tree::trunk_lod(
+        model,
+        view.scale,
+        view.trunk_depth,
+        &view.projection,
+        widths,
+    );
+    if static_lod.lines.is_empty() || n == 0 {
+        return trunk_tc(model, view, costs, time, out);
+    }
+    let time = time.max(0.0);
+    let area = trunk_triangle_area(model, view);
+    let px = pixels_per_unit(view, view.trunk_depth);
+    let static_k = static_lod.triangles.start;
+    let triangles = |k: u32| trunk_triangle_cost(model, costs, k, area);
+    let mut plan = LinePlan {
+        runs: static_lod.lines,
+        dropped: static_lod.dropped.end,
+    };
+    // Lines are cheaper than the triangles they replace and removing lines is cheaper
+    // still, so each cost below is monotone in its variable: binary searches find the
+    // extreme that fits.
+    let cost = |plan: &LinePlan, k: u32| plan.lines_cost(model, costs, px, k) + triangles(k);
+    let smallest = |mut lo: u32, mut hi: u32, fits: &dyn Fn(u32) -> bool| {
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if fits(mid) {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        lo
+    };
+    if cost(&plan, static_k) <= time {
+        // The most triangles: the smallest first-triangle segment that fits.
+        let k = smallest(plan.dropped, static_k, &|k| cost(&plan, k) <= time);
+        plan.write(k, out);
+        out.trunk_triangles = thick_end(model, k);
+        return Selected {
+            cost: cost(&plan, k),
+            truncated: false,
+        };
+    }
+    if triangles(static_k) <= time {
+        // Fewer lines: drop the thinnest until it fits. A trunk all of lines keeps at
+        // least its thickest one (drawn truncated when even that does not fit).
+        let runs = &plan.runs;
+        let last = if static_k == n { n - 1 } else { static_k };
+        let d = smallest(plan.dropped, last, &|d| {
+            let trial = LinePlan {
+                runs: runs.clone(),
+                dropped: d,
+            };
+            cost(&trial, static_k) <= time
+        });
+        plan.dropped = d;
+        plan.write(static_k, out);
+        out.trunk_triangles = thick_end(model, static_k);
+        let used = cost(&plan, static_k);
+        return Selected {
+            cost: used,
+            truncated: used > time,
+        };
+    }
+    trunk_tc(model, view, costs, time, out)
+}
+
+/// One visible leaf group of a tree: its index and depth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VisibleGroup {
+    /// Index into [`TreeModel::leaf_groups`].
+    pub group: u32,
+    /// Depth of the group's centre.
+    pub depth: f32,
+}
+
+/// Mean area of one leaf (world units, unscaled).
+pub fn mean_leaf_area(model: &TreeModel) -> f32 {
+    model.mean_leaf_triangle_area * model.leaf_triangle_count() as f32
+        / model.leaves.len().max(1) as f32
+}
+
+/// Projected area in pixels of a group of `leaves` leaves at `depth` (T-4.4).
+pub fn group_area(model: &TreeModel, view: &TreeView, leaves: u32, depth: f32) -> f32 {
+    let p = pixels_per_unit(view, depth);
+    leaves as f32 * mean_leaf_area(model) * p * p * LEAF_FACING
+}
+
+/// How the leaves of a tree are chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeafMethod {
+    /// Triangles only, far leaves first.
+    Tc,
+    /// Points of several sizes and triangles.
+    Tclod(PixelRange),
+    /// The static LOD at one point size.
+    Static(u32),
+}
+
+/// A tree's leaves: the time is shared among its visible groups by projected area, each
+/// group's remainder going to the groups after it and the last remainder back to the
+/// caller (thesis §6.5). `groups` lists the visible groups.
+pub fn leaves(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+    groups: &[VisibleGroup],
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Selected {
+    out.leaf_triangles.clear();
+    out.leaf_points.clear();
+    let triangles_per_leaf = model.leaf_triangle_count() as f32 / model.leaves.len().max(1) as f32;
+    let mut area_left: f32 = groups
+        .iter()
+        .map(|g| {
+            let n = model.leaf_groups[g.group as usize].leaves.len() as u32;
+            group_area(model, view, n, g.depth)
+        })
+        .filter(|a| a.is_finite())
+        .sum();
+    let mut time_left = time.max(0.0);
+    let mut total = Selected::default();
+    for g in groups {
+        let leaves = model.leaf_groups[g.group as usize].leaves.clone();
+        let n = leaves.end - leaves.start;
+        if n == 0 {
+            continue;
+        }
+        let area = group_area(model, view, n, g.depth);
+        let area = if area.is_finite() { area } else { 0.0 };
+        let share = if area_left > 0.0 {
+            (area / area_left).min(1.0)
+        } else {
+            1.0
+        };
+        area_left -= area;
+        let given = time_left * share;
+        let leaf_pixels = area / n as f32 / triangles_per_leaf.max(1.0);
+        let triangle_leaf = costs.triangles(1, leaf_pixels) * triangles_per_leaf;
+        let chosen = match method {
+            LeafMethod::Tc => group_tc(&leaves, triangle_leaf, given, out),
+            LeafMethod::Static(size) => {
+                let (points, far, tris) = static_split(n, area, size);
+                write_group(&leaves, points, far, tris, size, out);
+                Selected {
+                    cost: costs.points(size, points) + triangle_leaf * tris as f32,
+                    truncated: false,
+                }
+            }
+            LeafMethod::Tclod(sizes) => {
+                group_tclod(&leaves, area, triangle_leaf, costs, sizes, given, out)
+            }
+        };
+        time_left = (time_left - chosen.cost).max(0.0);
+        total.cost += chosen.cost;
+        total.truncated |= chosen.truncated;
+    }
+    total
+}
+
+/// The static split of a group of `n` leaves projecting `area` pixels at point `size`
+/// (T-4.5, T-4.6): `(points, from the far end, triangle leaves)`.
+fn static_split(n: u32, area: f32, size: u32) -> (u32, bool, u32) {
+    let s = size.max(1) as f32;
+    let wanted = area / (s * s);
+    let nf = n as f32;
+    if wanted < nf {
+        ((wanted.round() as u32).clamp(1, n), true, 0)
+    } else if wanted < 2.0 * nf {
+        let points = ((2.0 * nf - wanted).round() as u32).min(n);
+        (points, false, n - points)
+    } else {
+        (0, false, n)
+    }
+}
+
+fn write_group(
+    leaves: &Range<u32>,
+    points: u32,
+    far: bool,
+    triangles: u32,
+    size: u32,
+    out: &mut TreeDrawList,
+) {
+    let n = leaves.end - leaves.start;
+    let points = points.min(n);
+    let triangles = triangles.min(n - points);
+    if far {
+        // Far points, and triangles (if any) just before them.
+        let p = leaves.end - points..leaves.end;
+        let t = p.start - triangles..p.start;
+        push(out, t, p, size);
+    } else {
+        let p = leaves.start..leaves.start + points;
+        let t = p.end..p.end + triangles;
+        push(out, t, p, size);
+    }
+}
+
+fn push(out: &mut TreeDrawList, triangles: Range<u32>, points: Range<u32>, size: u32) {
+    if !triangles.is_empty() {
+        // Adjacent groups' ranges join into one.
+        match out.leaf_triangles.last_mut() {
+            Some(last) if last.end == triangles.start => last.end = triangles.end,
+            _ => out.leaf_triangles.push(triangles),
+        }
+    }
+    if !points.is_empty() {
+        match out.leaf_points.last_mut() {
+            Some(last) if last.leaves.end == points.start && last.size == size => {
+                last.leaves.end = points.end;
+            }
+            _ => out.leaf_points.push(PointRun {
+                leaves: points,
+                size,
+            }),
+        }
+    }
+}
+
+/// TC group: far leaves as triangles, as many as fit, at least one.
+fn group_tc(
+    leaves: &Range<u32>,
+    triangle_leaf: f32,
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Selected {
+    let n = leaves.end - leaves.start;
+    let affordable = if triangle_leaf > 0.0 {
+        (time / triangle_leaf).floor().min(n as f32) as u32
+    } else {
+        n
+    };
+    let count = affordable.max(1);
+    write_group(leaves, 0, true, count, 1, out);
+    Selected {
+        cost: triangle_leaf * count as f32,
+        truncated: affordable == 0,
+    }
+}
+
+/// TCLOD group: the smallest point size (best quality) whose static split fits; at the
+/// largest size, only the far points that fit, at least one.
+fn group_tclod(
+    leaves: &Range<u32>,
+    area: f32,
+    triangle_leaf: f32,
+    costs: &PrimitiveCosts,
+    sizes: PixelRange,
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Selected {
+    let n = leaves.end - leaves.start;
+    let min = sizes.min.max(1);
+    // No point larger than the whole group on screen.
+    let max = (area.max(0.0).sqrt().floor() as u32).clamp(min, sizes.max.max(min));
+    let cost_at = |size: u32| {
+        let (points, _, tris) = static_split(n, area, size);
+        costs.points(size, points) + triangle_leaf * tris as f32
+    };
+    // Full detail when every leaf fits as a triangle and the group is big enough on
+    // screen to want it at the smallest size.
+    if cost_at(min) <= time {
+        let (points, far, tris) = static_split(n, area, min);
+        write_group(leaves, points, far, tris, min, out);
+        return Selected {
+            cost: cost_at(min),
+            truncated: false,
+        };
+    }
+    // Cost falls as the size grows: the smallest size that fits.
+    let (mut lo, mut hi) = (min, max);
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if cost_at(mid) <= time {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    if cost_at(lo) <= time {
+        let (points, far, tris) = static_split(n, area, lo);
+        write_group(leaves, points, far, tris, lo, out);
+        return Selected {
+            cost: cost_at(lo),
+            truncated: false,
+        };
+    }
+    let each = costs.points(max, 1);
+    let affordable = if each > 0.0 {
+        (time / each).floor().min(n as f32) as u32
+    } else {
+        n
+    };
+    let count = affordable.max(1);
+    write_group(leaves, count, true, 0, max, out);
+    Selected {
+        cost: each * count as f32,
+        truncated: affordable == 0,
+    }
+}

@@ -1,0 +1,80 @@
+//! The viewpoint the level-of-detail stages work from.
+
+use bevy::prelude::*;
+
+use crate::tree::Projection;
+
+/// Where the camera is, where it looks and how it projects: what the value function, the
+/// LOD searches and the wind's motion LOD measure depths and pixels against.
+///
+/// Perspective 3D cameras get one automatically, kept up to date before the Sherwood
+/// stages (with the `render` feature); headless apps insert it themselves. With several,
+/// the first one found is used.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component)]
+pub struct LodView {
+    /// Camera position, world space.
+    pub position: Vec3,
+    /// Unit viewing direction, world space.
+    pub forward: Vec3,
+    /// Pixels per world unit at unit distance (`viewport height / (2·tan(fov / 2))`).
+    pub focal_pixels: f32,
+}
+
+impl LodView {
+    /// Depth of `point` along the viewing direction.
+    pub fn depth(&self, point: Vec3) -> f32 {
+        (point - self.position).dot(self.forward)
+    }
+
+    /// The view's projection, for the pixel-driven searches.
+    pub fn projection(&self) -> Projection {
+        Projection {
+            focal_pixels: self.focal_pixels,
+        }
+    }
+}
+
+pub(crate) fn build(app: &mut App) {
+    app.register_type::<LodView>();
+    #[cfg(feature = "render")]
+    app.add_systems(
+        PostUpdate,
+        update_lod_views.before(crate::SherwoodSystems::Animate),
+    );
+}
+
+/// Keeps a [`LodView`] on every perspective 3D camera.
+#[cfg(feature = "render")]
+fn update_lod_views(
+    mut commands: Commands,
+    cameras: Query<
+        (
+            Entity,
+            &Camera,
+            &Projection_,
+            &GlobalTransform,
+            Option<&LodView>,
+        ),
+        With<Camera3d>,
+    >,
+) {
+    for (entity, camera, projection, transform, current) in &cameras {
+        let (Projection_::Perspective(perspective), Some(size)) =
+            (projection, camera.physical_viewport_size())
+        else {
+            continue;
+        };
+        let view = LodView {
+            position: transform.translation(),
+            forward: transform.forward().as_vec3(),
+            focal_pixels: size.y as f32 / (2.0 * (perspective.fov * 0.5).tan()).max(1e-6),
+        };
+        if current != Some(&view) {
+            commands.entity(entity).insert(view);
+        }
+    }
+}
+
+#[cfg(feature = "render")]
+use bevy::camera::Projection as Projection_;

@@ -1,0 +1,245 @@
+//! The time-critical LOD stages in a headless app: the default forest, culled and
+//! budgeted against a fixed view.
+
+use bevy::asset::AssetPlugin;
+use bevy::prelude::*;
+use bevy_sherwood::culling::FrustumPlanes;
+use bevy_sherwood::draw::TreeDrawList;
+use bevy_sherwood::lod::StrategyKind;
+use bevy_sherwood::prelude::*;
+
+const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
+const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);
+
+fn app() -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
+            ..Default::default()
+        },
+        TransformPlugin,
+        SherwoodPlugins,
+    ));
+    let handle = app
+        .world()
+        .resource::<AssetServer>()
+        .load("forests/default.ecosystem.ron");
+    app.world_mut().spawn(Forest(handle));
+    let clip_from_world = Mat4::perspective_infinite_reverse_rh(0.8, 16.0 / 9.0, 0.1)
+        * Mat4::look_at_rh(EYE, LOOK_AT, Vec3::Y);
+    app.world_mut().spawn((
+        CullView(FrustumPlanes::from_clip_from_world(clip_from_world)),
+        LodView {
+            position: EYE,
+            forward: (LOOK_AT - EYE).normalize(),
+            focal_pixels: 540.0 / (2.0 * (0.8f32 * 0.5).tan()),
+        },
+    ));
+    for _ in 0..3000 {
+        app.update();
+        if app.world().resource::<ForestCulling>().hierarchy.is_some()
+            && app.world().resource::<LodDiagnostics>().visible_instances > 0
+        {
+            return app;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("the forest never finished loading");
+}
+
+fn frame(app: &mut App, budget: FrameBudget) -> LodDiagnostics {
+    *app.world_mut().resource_mut::<FrameBudget>() = budget;
+    app.update();
+    app.world().resource::<LodDiagnostics>().clone()
+}
+
+fn with(mode: LodMode, target_ms: f32) -> FrameBudget {
+    FrameBudget {
+        mode,
+        target_ms,
+        ..Default::default()
+    }
+}
+
+/// Draw lists of the instances culling found visible, and of the rest.
+fn lists(app: &mut App) -> (Vec<TreeDrawList>, Vec<TreeDrawList>) {
+    let world = app.world_mut();
+    let culling = world.resource::<ForestCulling>();
+    let entities = culling.entities.clone();
+    let visible: Vec<bool> = (0..entities.len())
+        .map(|i| culling.result.visibility[i] != Default::default())
+        .collect();
+    let mut seen = Vec::new();
+    let mut unseen = Vec::new();
+    for (e, v) in entities.into_iter().zip(visible) {
+        let list = world.get::<TreeDrawList>(e).cloned().unwrap_or_default();
+        if v {
+            seen.push(list);
+        } else {
+            unseen.push(list);
+        }
+    }
+    (seen, unseen)
+}
+
+fn total(d: &LodDiagnostics) -> u64 {
+    d.counts.triangles + d.counts.lines + d.counts.points
+}
+
+#[test]
+fn more_time_never_draws_fewer_primitives() {
+    let mut app = app();
+    for mode in [LodMode::Tc, LodMode::Tclod] {
+        let mut previous = 0;
+        for target in [5.0, 20.0, 40.0, 80.0, 160.0, 320.0, 640.0, 5000.0] {
+            let d = frame(&mut app, with(mode, target));
+            assert!(d.visible_instances > 20, "{d:?}");
+            assert!(
+                total(&d) >= previous,
+                "{mode:?} at {target} ms draws {} primitives, fewer than {previous} at a lower target",
+                total(&d)
+            );
+            previous = total(&d);
+        }
+    }
+}
+
+#[test]
+fn with_no_time_every_visible_object_is_still_drawn() {
+    let mut app = app();
+    for mode in [LodMode::Tc, LodMode::Tclod] {
+        let d = frame(&mut app, with(mode, 0.0));
+        assert_eq!(d.render_budget_ms, 0.0);
+        assert_eq!(d.undrawn, 0);
+        assert_eq!(d.truncated, d.visible_objects, "{mode:?}: {d:?}");
+        let (seen, unseen) = lists(&mut app);
+        assert!(!seen.is_empty());
+        assert!(
+            seen.iter().all(|l| !l.is_empty()),
+            "{mode:?}: a visible tree is undrawn"
+        );
+        assert!(
+            unseen.iter().all(TreeDrawList::is_empty),
+            "{mode:?}: an invisible tree is drawn"
+        );
+    }
+}
+
+#[test]
+fn the_prediction_stays_within_the_rendering_time() {
+    let mut app = app();
+    for mode in [LodMode::Tc, LodMode::Tclod] {
+        for target in [30.0, 60.0, 120.0, 250.0, 1000.0] {
+            let d = frame(&mut app, with(mode, target));
+            assert!(d.predicted_render_ms.is_finite() && d.predicted_frame_ms.is_finite());
+            if d.truncated == 0 {
+                assert!(
+                    d.predicted_render_ms <= d.render_budget_ms * 1.0001 + 1e-6,
+                    "{mode:?} at {target} ms: {d:?}"
+                );
+            } else {
+                assert!(d.predicted_render_ms > 0.0);
+            }
+            assert_eq!(d.undrawn, 0);
+        }
+    }
+}
+
+#[test]
+fn modes_and_targets_switch_at_run_time_without_respawning() {
+    let mut app = app();
+    let instances = app.world().resource::<ForestCulling>().entities.clone();
+    let unlimited = frame(&mut app, with(LodMode::Unlimited, 50.0));
+    let static_lod = frame(&mut app, with(LodMode::Static, 50.0));
+    let tight = frame(&mut app, with(LodMode::Tclod, 50.0));
+    let loose = frame(&mut app, with(LodMode::Tclod, 2000.0));
+    let tc = frame(&mut app, with(LodMode::Tc, 50.0));
+    assert_eq!(app.world().resource::<ForestCulling>().entities, instances);
+
+    assert_eq!(unlimited.counts.lines + unlimited.counts.points, 0);
+    assert!(
+        static_lod.counts.lines + static_lod.counts.points > 0,
+        "{static_lod:?}"
+    );
+    assert!(static_lod.counts.triangles < unlimited.counts.triangles);
+    assert_eq!(tc.counts.lines + tc.counts.points, 0);
+    assert!(tc.counts.triangles < unlimited.counts.triangles);
+    assert!(tight.counts.triangles < loose.counts.triangles);
+    // A target the same again gives the same selection: nothing drifts between frames.
+    let again = frame(&mut app, with(LodMode::Tclod, 50.0));
+    assert_eq!(again.counts, tight.counts);
+}
+
+#[test]
+fn a_target_below_the_logic_time_is_clamped_not_negative() {
+    let mut app = app();
+    let d = frame(&mut app, with(LodMode::Tclod, -5.0));
+    assert_eq!(d.render_budget_ms, 0.0);
+    assert!(d.logic_ms > 0.0);
+    let d = frame(&mut app, with(LodMode::Tclod, f32::NAN));
+    assert_eq!(d.render_budget_ms, 0.0);
+    assert_eq!(d.undrawn, 0);
+}
+
+#[test]
+fn ladder_strategies_may_drop_objects_and_say_so() {
+    let mut app = app();
+    let strategies = [
+        StrategyKind::FunkhouserSequin,
+        StrategyKind::FunkhouserIncremental,
+        StrategyKind::TriangleBudget,
+    ];
+    for strategy in strategies {
+        for target in [5.0, 40.0, 200.0, 2000.0] {
+            let budget = FrameBudget {
+                strategy,
+                target_ms: target,
+                ..Default::default()
+            };
+            let d = frame(&mut app, budget.clone());
+            // The incremental strategy starts from last frame: give it a second frame.
+            let d = if strategy == StrategyKind::FunkhouserIncremental {
+                frame(&mut app, budget)
+            } else {
+                d
+            };
+            assert!(d.predicted_render_ms.is_finite());
+            // The greedy drops what does not fit; the triangle budget never goes below
+            // every object's cheapest level and reports the overrun.
+            if strategy == StrategyKind::TriangleBudget {
+                assert!(d.overrun_ms == 0.0 || d.undrawn == 0);
+            } else {
+                assert!(
+                    d.predicted_render_ms <= d.render_budget_ms * 1.0001 + 1e-6,
+                    "{strategy:?} at {target} ms overspends: {d:?}"
+                );
+            }
+            let (seen, _) = lists(&mut app);
+            let empty = seen.iter().filter(|l| l.is_empty()).count() as u32;
+            // A tree is empty only when both its parts were dropped.
+            assert!(
+                empty <= d.undrawn,
+                "{strategy:?} at {target} ms: {empty} empty trees, {} dropped objects",
+                d.undrawn
+            );
+            if target == 5.0 && strategy == StrategyKind::FunkhouserSequin {
+                assert!(
+                    d.undrawn > 0,
+                    "with 1 ms for {} objects something must go",
+                    d.visible_objects
+                );
+            }
+            if target == 2000.0 {
+                assert_eq!(
+                    d.undrawn, 0,
+                    "{strategy:?} drops objects with time to spare"
+                );
+            }
+        }
+    }
+    // Back to Robin Hood: nothing dropped.
+    let d = frame(&mut app, with(LodMode::Tclod, 5.0));
+    assert_eq!(d.undrawn, 0);
+}

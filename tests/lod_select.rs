@@ -1,0 +1,178 @@
+//! The per-object searches of the time-critical modes, on a shipped species.
+
+use bevy::math::Vec3;
+use bevy_sherwood::cost::Calibration;
+use bevy_sherwood::draw::TreeDrawList;
+use bevy_sherwood::lod::select::*;
+use bevy_sherwood::tree::{PixelRange, Projection, SpeciesDesc, TreeModel};
+
+fn model() -> TreeModel {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/species/grand.species.ron"
+    );
+    SpeciesDesc::from_ron_str(&std::fs::read_to_string(path).unwrap())
+        .unwrap()
+        .generate_and_analyze()
+        .unwrap()
+        .model
+}
+
+fn view(depth: f32) -> TreeView {
+    TreeView {
+        scale: 1.0,
+        trunk_depth: depth,
+        projection: Projection::perspective(0.8, 540.0),
+    }
+}
+
+fn groups(model: &TreeModel, depth: f32) -> Vec<VisibleGroup> {
+    (0..model.leaf_groups.len() as u32)
+        .map(|group| VisibleGroup { group, depth })
+        .collect()
+}
+
+const TIMES: [f32; 9] = [0.0, 1e-6, 1e-5, 5e-5, 1e-4, 5e-4, 1e-3, 1e-2, 1.0];
+
+#[test]
+fn a_trunk_never_costs_more_than_its_time_unless_truncated_and_grows_with_it() {
+    let model = model();
+    let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    let total = model.trunk_triangle_count() as u32;
+    for depth in [3.0, 15.0, 60.0, 250.0] {
+        let v = view(depth);
+        let mut previous = 0.0;
+        for time in TIMES {
+            for tclod in [false, true] {
+                let mut list = TreeDrawList::default();
+                let s = if tclod {
+                    trunk_tclod(&model, &v, &costs, PixelRange::default(), time, &mut list)
+                } else {
+                    trunk_tc(&model, &v, &costs, time, &mut list)
+                };
+                assert!(s.cost.is_finite());
+                assert!(
+                    !list.is_empty(),
+                    "an undrawn trunk at depth {depth}, time {time}"
+                );
+                assert!(
+                    s.cost <= time * 1.0001 || s.truncated,
+                    "depth {depth} time {time}: {s:?}"
+                );
+                assert_eq!(
+                    list.trunk_triangles.end.min(total),
+                    list.trunk_triangles.end
+                );
+                if tclod {
+                    assert!(
+                        s.cost >= previous * 0.9999,
+                        "depth {depth}: less at {time} than before"
+                    );
+                    previous = s.cost;
+                }
+            }
+        }
+        // With a second to spare, every segment the static LOD does not drop as
+        // sub-pixel is triangles.
+        let mut list = TreeDrawList::default();
+        trunk_tclod(&model, &v, &costs, PixelRange::default(), 1.0, &mut list);
+        let dropped = bevy_sherwood::tree::trunk_lod(
+            &model,
+            1.0,
+            depth,
+            &v.projection,
+            PixelRange::default(),
+        )
+        .dropped
+        .end;
+        let first = model.segments.triangle_offsets[dropped as usize];
+        assert_eq!(list.trunk_triangles, first..total, "depth {depth}");
+        assert!(list.trunk_lines.is_empty());
+    }
+}
+
+#[test]
+fn far_trunks_become_lines_and_near_ones_triangles() {
+    let model = model();
+    let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    let mut far = TreeDrawList::default();
+    trunk_tclod(
+        &model,
+        &view(400.0),
+        &costs,
+        PixelRange::default(),
+        1e-5,
+        &mut far,
+    );
+    assert!(!far.trunk_lines.is_empty());
+    assert!(far.trunk_lines.iter().all(|r| (1..=20).contains(&r.width)));
+    let mut near = TreeDrawList::default();
+    trunk_tclod(
+        &model,
+        &view(1.0),
+        &costs,
+        PixelRange::default(),
+        1e-5,
+        &mut near,
+    );
+    assert!(
+        near.trunk_lines.is_empty(),
+        "a trunk filling the view is not a line"
+    );
+}
+
+#[test]
+fn leaves_fit_their_time_and_use_it_as_it_grows() {
+    let model = model();
+    let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    for depth in [5.0, 30.0, 200.0] {
+        let v = view(depth);
+        let g = groups(&model, depth);
+        for method in [LeafMethod::Tc, LeafMethod::Tclod(PixelRange::default())] {
+            let mut previous = 0.0;
+            for time in TIMES {
+                let mut list = TreeDrawList::default();
+                let s = leaves(&model, &v, &costs, method, &g, time, &mut list);
+                assert!(s.cost.is_finite());
+                assert!(
+                    s.cost <= time * 1.0001 || s.truncated,
+                    "{method:?} {depth} {time}: {s:?}"
+                );
+                assert!(
+                    s.cost >= previous * 0.9999,
+                    "{method:?} at {depth}: less with more time"
+                );
+                previous = s.cost;
+                // Every group draws something, and no leaf twice.
+                let mut drawn = vec![0u8; model.leaves.len()];
+                for r in &list.leaf_triangles {
+                    r.clone().for_each(|l| drawn[l as usize] += 1);
+                }
+                for r in &list.leaf_points {
+                    r.leaves.clone().for_each(|l| drawn[l as usize] += 1);
+                }
+                assert!(drawn.iter().all(|&d| d <= 1));
+                for group in &model.leaf_groups {
+                    assert!(group.leaves.clone().any(|l| drawn[l as usize] == 1));
+                }
+            }
+        }
+    }
+    // Points are the far leaves of a group, never its near ones, when the group is small.
+    let mut list = TreeDrawList::default();
+    let g = groups(&model, 300.0);
+    leaves(
+        &model,
+        &view(300.0),
+        &costs,
+        LeafMethod::Tclod(PixelRange::default()),
+        &g,
+        1.0,
+        &mut list,
+    );
+    for run in &list.leaf_points {
+        let group = &model.leaf_groups[model.leaves[run.leaves.start as usize].group as usize];
+        assert_eq!(run.leaves.end, group.leaves.end);
+    }
+    let _ = Vec3::ZERO;
+}
