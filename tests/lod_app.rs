@@ -243,3 +243,25 @@ fn ladder_strategies_may_drop_objects_and_say_so() {
     let d = frame(&mut app, with(LodMode::Tclod, 5.0));
     assert_eq!(d.undrawn, 0);
 }
+
+#[test]
+fn the_diagnostics_plugin_publishes_the_frame() {
+    use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
+    let mut app = app();
+    app.add_plugins(bevy_sherwood::lod::LodDiagnosticsPlugin);
+    frame(&mut app, with(LodMode::Tclod, 100.0));
+    let d = frame(&mut app, with(LodMode::Tclod, 100.0));
+    let store = app.world().resource::<DiagnosticsStore>();
+    let read = |path: &'static str| {
+        store
+            .get(&DiagnosticPath::const_new(path))
+            .and_then(bevy::diagnostic::Diagnostic::value)
+            .unwrap_or_else(|| panic!("{path} not published"))
+    };
+    assert_eq!(
+        read("sherwood/visible_objects"),
+        f64::from(d.visible_objects)
+    );
+    assert_eq!(read("sherwood/triangles"), d.counts.triangles as f64);
+    assert!(read("sherwood/render_budget") > 0.0);
+}

@@ -176,3 +176,22 @@ fn leaves_fit_their_time_and_use_it_as_it_grows() {
     }
     let _ = Vec3::ZERO;
 }
+
+#[test]
+fn a_trunk_too_far_to_see_is_still_one_thin_line() {
+    let model = model();
+    let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    let mut list = TreeDrawList::default();
+    trunk_tclod(
+        &model,
+        &view(50_000.0),
+        &costs,
+        PixelRange::default(),
+        0.0,
+        &mut list,
+    );
+    assert!(list.trunk_triangles.is_empty());
+    assert_eq!(list.trunk_lines.len(), 1);
+    assert_eq!(list.trunk_lines[0].width, 1);
+    assert_eq!(list.trunk_lines[0].segments.len(), 1);
+}

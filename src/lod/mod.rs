@@ -21,7 +21,10 @@
 //! The cost model is the default [`Calibration`] until the calibration lands; its
 //! per-primitive costs predict, its logic table estimates `t_l`.
 
+mod diagnostics;
 pub mod select;
+
+pub use diagnostics::LodDiagnosticsPlugin;
 
 use std::time::Instant;
 

@@ -263,15 +263,21 @@ pub fn trunk_tclod(
     out: &mut TreeDrawList,
 ) -> Selected {
     let n = model.segments.len() as u32;
-    let static_lod = crate::tree::trunk_lod(
+    let mut static_lod = crate::tree::trunk_lod(
         model,
         view.scale,
         view.trunk_depth,
         &view.projection,
         widths,
     );
-    if static_lod.lines.is_empty() || n == 0 {
+    if n == 0 || static_lod.triangles == (0..n) {
+        // Too thick for the widest line.
         return trunk_tc(model, view, costs, time, out);
+    }
+    if static_lod.lines.is_empty() && static_lod.triangles.is_empty() {
+        // Everything below half a pixel: the thickest segment stays, as the thinnest line.
+        static_lod.dropped = 0..n - 1;
+        static_lod.lines = vec![(widths.min.max(1), n - 1..n)];
     }
     let time = time.max(0.0);
     let area = trunk_triangle_area(model, view);
