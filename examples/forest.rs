@@ -1,0 +1,598 @@
+//! The forest: an ecosystem drawn with time-critical level of detail, a HUD, and the
+//! paper's camera paths with frame-time statistics.
+//!
+//! ```sh
+//! cargo run --release --example forest                       # fly around (WASD + mouse)
+//! cargo run --release --example forest -- --path linear --frames 300 --summary
+//! cargo run --release --example forest -- --help
+//! ```
+//!
+//! Keys: `W A S D` move, `Q E` down/up, right mouse button + drag to look, `Shift` faster;
+//! `+`/`-` raise/lower the target frame time; `M` cycle the mode; `B` cycle the budget
+//! strategy; `N` toggle wind; `C` toggle the culling boxes; `H` toggle the HUD.
+
+use std::io::Write;
+use std::time::Duration;
+
+use bevy::app::ScheduleRunnerPlugin;
+use bevy::camera::RenderTarget;
+use bevy::input::mouse::AccumulatedMouseMotion;
+use bevy::prelude::*;
+use bevy::render::render_resource::{TextureFormat, TextureUsages};
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use bevy::window::{ExitCondition, PresentMode, WindowResolution};
+use bevy::winit::WinitPlugin;
+use bevy_sherwood::ecosystem::{EcosystemDesc, ForestTerrain};
+use bevy_sherwood::lod::StrategyKind;
+use bevy_sherwood::prelude::*;
+use bevy_sherwood::wind::WindSettings;
+
+const USAGE: &str = "\
+usage: forest [OPTIONS]
+
+  --ecosystem PATH       ecosystem file under assets/ (default forests/default.ecosystem.ron)
+  --trees N              total trees, split across species in the file's proportions
+  --seed S               placement seed
+  --path linear|zigzag   walk the paper's camera path instead of flying freely
+  --path-frames M        stretch or squeeze the path to M frames (linear 1100, zigzag 1700)
+  --frames N             exit after N measured frames (default: the path's length)
+  --warmup N             frames excluded from statistics (default 60)
+  --target-ms T          target frame time in ms (default 100)
+  --mode tclod|tc|static|unlimited
+  --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget
+  --value p8|p9|p10|p11
+  --no-wind              no wind
+  --width W --height H   window or image size (default 960x540)
+  --record FILE.csv      one row per measured frame
+  --summary              print one summary line at exit
+  --screenshot FILE.png  save a screenshot of measured frame K (with --at-frame K)
+  --at-frame K
+  --headless             render to an image, without a window
+  --help                 this text";
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CameraPath {
+    Linear,
+    Zigzag,
+}
+
+impl CameraPath {
+    fn frames(self) -> u32 {
+        match self {
+            Self::Linear => 1100,
+            Self::Zigzag => 1700,
+        }
+    }
+}
+
+#[derive(Resource, Clone, Debug)]
+struct Options {
+    ecosystem: String,
+    trees: Option<u32>,
+    seed: Option<u64>,
+    path: Option<CameraPath>,
+    path_frames: Option<u32>,
+    frames: Option<u32>,
+    warmup: u32,
+    target_ms: f32,
+    mode: LodMode,
+    strategy: StrategyKind,
+    value: ValueFunction,
+    wind: bool,
+    width: u32,
+    height: u32,
+    record: Option<String>,
+    summary: bool,
+    screenshot: Option<(String, u32)>,
+    headless: bool,
+}
+
+fn parse(args: &[String]) -> Result<Options, String> {
+    let mut o = Options {
+        ecosystem: "forests/default.ecosystem.ron".into(),
+        trees: None,
+        seed: None,
+        path: None,
+        path_frames: None,
+        frames: None,
+        warmup: 60,
+        target_ms: 100.0,
+        mode: LodMode::Tclod,
+        strategy: StrategyKind::RobinHood,
+        value: ValueFunction::P11,
+        wind: true,
+        width: 960,
+        height: 540,
+        record: None,
+        summary: false,
+        screenshot: None,
+        headless: false,
+    };
+    let mut at_frame = None;
+    let mut screenshot = None;
+    let mut it = args.iter();
+    fn number<T: std::str::FromStr>(flag: &str, v: Option<&String>) -> Result<T, String> {
+        let v = v.ok_or_else(|| format!("{flag} needs a value"))?;
+        v.parse()
+            .map_err(|_| format!("{flag}: `{v}` is not a valid number"))
+    }
+    while let Some(flag) = it.next() {
+        match flag.as_str() {
+            "--ecosystem" => o.ecosystem = it.next().ok_or("--ecosystem needs a path")?.clone(),
+            "--trees" => o.trees = Some(number("--trees", it.next())?),
+            "--seed" => o.seed = Some(number("--seed", it.next())?),
+            "--path" => {
+                o.path = Some(match it.next().map(String::as_str) {
+                    Some("linear") => CameraPath::Linear,
+                    Some("zigzag") => CameraPath::Zigzag,
+                    other => {
+                        return Err(format!("--path: expected linear or zigzag, got {other:?}"));
+                    }
+                });
+            }
+            "--path-frames" => o.path_frames = Some(number("--path-frames", it.next())?),
+            "--frames" => o.frames = Some(number("--frames", it.next())?),
+            "--warmup" => o.warmup = number("--warmup", it.next())?,
+            "--target-ms" => o.target_ms = number("--target-ms", it.next())?,
+            "--mode" => {
+                o.mode = match it.next().map(String::as_str) {
+                    Some("tclod") => LodMode::Tclod,
+                    Some("tc") => LodMode::Tc,
+                    Some("static") => LodMode::Static,
+                    Some("unlimited") => LodMode::Unlimited,
+                    other => return Err(format!("--mode: unknown {other:?}")),
+                };
+            }
+            "--strategy" => {
+                o.strategy = match it.next().map(String::as_str) {
+                    Some("robin-hood") => StrategyKind::RobinHood,
+                    Some("funkhouser") => StrategyKind::FunkhouserSequin,
+                    Some("funkhouser-incremental") => StrategyKind::FunkhouserIncremental,
+                    Some("triangle-budget") => StrategyKind::TriangleBudget,
+                    other => return Err(format!("--strategy: unknown {other:?}")),
+                };
+            }
+            "--value" => {
+                o.value = match it.next().map(String::as_str) {
+                    Some("p8") => ValueFunction::P8,
+                    Some("p9") => ValueFunction::P9,
+                    Some("p10") => ValueFunction::P10,
+                    Some("p11") => ValueFunction::P11,
+                    other => return Err(format!("--value: unknown {other:?}")),
+                };
+            }
+            "--no-wind" => o.wind = false,
+            "--width" => o.width = number("--width", it.next())?,
+            "--height" => o.height = number("--height", it.next())?,
+            "--record" => o.record = Some(it.next().ok_or("--record needs a file")?.clone()),
+            "--summary" => o.summary = true,
+            "--screenshot" => {
+                screenshot = Some(it.next().ok_or("--screenshot needs a file")?.clone());
+            }
+            "--at-frame" => at_frame = Some(number("--at-frame", it.next())?),
+            "--headless" => o.headless = true,
+            "--help" | "-h" => return Err(String::new()),
+            other => return Err(format!("unknown flag {other}")),
+        }
+    }
+    if !(o.target_ms.is_finite() && o.target_ms > 0.0) {
+        return Err("--target-ms must be a positive number".into());
+    }
+    if o.width == 0 || o.height == 0 {
+        return Err("--width and --height must be positive".into());
+    }
+    if o.path_frames == Some(0) {
+        return Err("--path-frames must be positive".into());
+    }
+    o.screenshot = match (screenshot, at_frame) {
+        (Some(file), Some(k)) => Some((file, k)),
+        (Some(file), None) => Some((file, 0)),
+        (None, Some(_)) => return Err("--at-frame needs --screenshot".into()),
+        (None, None) => None,
+    };
+    Ok(o)
+}
+
+/// One measured frame.
+#[derive(Clone, Debug)]
+struct Row {
+    frame: u32,
+    diagnostics: LodDiagnostics,
+    measured_ms: f32,
+}
+
+/// The run's state.
+#[derive(Resource, Default)]
+struct Run {
+    /// Frames since the forest was drawn for the first time.
+    frame: u32,
+    rows: Vec<Row>,
+    /// Last frame's selection, measured when this frame starts.
+    pending: Option<(u32, LodDiagnostics)>,
+    image: Option<Handle<Image>>,
+}
+
+fn main() -> AppExit {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let options = match parse(&args) {
+        Ok(o) => o,
+        Err(message) => {
+            if message.is_empty() {
+                println!("{USAGE}");
+                return AppExit::Success;
+            }
+            eprintln!("forest: {message}\n\n{USAGE}");
+            return AppExit::error();
+        }
+    };
+    let mut app = App::new();
+    let window = WindowPlugin {
+        primary_window: (!options.headless).then(|| Window {
+            title: "bevy_sherwood forest".into(),
+            resolution: WindowResolution::new(options.width, options.height),
+            present_mode: PresentMode::AutoNoVsync,
+            ..default()
+        }),
+        exit_condition: if options.headless {
+            ExitCondition::DontExit
+        } else {
+            ExitCondition::OnAllClosed
+        },
+        ..default()
+    };
+    if options.headless {
+        app.add_plugins(DefaultPlugins.set(window).disable::<WinitPlugin>())
+            .add_plugins(ScheduleRunnerPlugin::run_loop(Duration::ZERO));
+    } else {
+        app.add_plugins(DefaultPlugins.set(window));
+    }
+    app.add_plugins((
+        SherwoodPlugins,
+        ForestHudPlugin,
+        bevy::render::diagnostic::RenderDiagnosticsPlugin,
+    ))
+    .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
+    .insert_resource(FrameBudget {
+        target_ms: options.target_ms,
+        mode: options.mode,
+        strategy: options.strategy,
+        value: options.value,
+        ..default()
+    })
+    .insert_resource(WindSettings {
+        enabled: options.wind,
+        ..default()
+    })
+    .insert_resource(options)
+    .init_resource::<Run>()
+    .add_systems(Startup, setup)
+    .add_systems(Update, (keys, fly, follow_path, measure).chain())
+    .run()
+}
+
+fn setup(
+    mut commands: Commands,
+    options: Res<Options>,
+    mut ecosystems: ResMut<Assets<Ecosystem>>,
+    mut images: ResMut<Assets<Image>>,
+    mut run: ResMut<Run>,
+    mut hud: ResMut<ForestHud>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    let path = format!(
+        "{}/assets/{}",
+        env!("CARGO_MANIFEST_DIR"),
+        options.ecosystem
+    );
+    let desc = std::fs::read_to_string(&path)
+        .map_err(|e| e.to_string())
+        .and_then(|text| EcosystemDesc::from_ron_str(&text).map_err(|e| e.to_string()));
+    let mut desc = match desc {
+        Ok(desc) => desc,
+        Err(e) => {
+            eprintln!("forest: {path}: {e}");
+            exit.write(AppExit::error());
+            return;
+        }
+    };
+    if let Some(total) = options.trees {
+        let sum: u32 = desc.species.iter().map(|s| s.count).sum::<u32>().max(1);
+        let mut given = 0;
+        let n = desc.species.len();
+        for (i, s) in desc.species.iter_mut().enumerate() {
+            s.count = if i + 1 == n {
+                total - given
+            } else {
+                (u64::from(s.count) * u64::from(total) / u64::from(sum)) as u32
+            };
+            given += s.count;
+        }
+        // Keep the density of the file.
+        desc.terrain.size *= (total as f32 / sum as f32).sqrt();
+    }
+    if let Some(seed) = options.seed {
+        desc.seed = seed;
+    }
+    let size = desc.terrain.size;
+    commands.spawn(Forest(ecosystems.add(Ecosystem(desc))));
+    commands.spawn((
+        DirectionalLight {
+            illuminance: 9_000.0,
+            ..default()
+        },
+        Transform::from_xyz(4.0, 10.0, 6.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    let mut camera = commands.spawn((
+        Camera3d::default(),
+        Transform::from_xyz(-0.1 * size, 25.0, -0.1 * size)
+            .looking_at(Vec3::new(size * 0.5, 0.0, size * 0.5), Vec3::Y),
+    ));
+    if options.headless {
+        let mut image = Image::new_target_texture(
+            options.width,
+            options.height,
+            TextureFormat::Rgba8UnormSrgb,
+            None,
+        );
+        image.texture_descriptor.usage |= TextureUsages::COPY_SRC;
+        let image = images.add(image);
+        camera.insert(RenderTarget::Image(image.clone().into()));
+        run.image = Some(image);
+    }
+    hud.footer =
+        "WASD/QE move, right drag look | +/- target  M mode  B strategy  N wind  C boxes  H hud"
+            .into();
+}
+
+fn keys(
+    input: Res<ButtonInput<KeyCode>>,
+    mut budget: ResMut<FrameBudget>,
+    mut wind: ResMut<WindSettings>,
+    mut boxes: ResMut<CullingDebug>,
+    mut hud: ResMut<ForestHud>,
+) {
+    if input.just_pressed(KeyCode::Equal) || input.just_pressed(KeyCode::NumpadAdd) {
+        budget.target_ms *= 1.25;
+    }
+    if input.just_pressed(KeyCode::Minus) || input.just_pressed(KeyCode::NumpadSubtract) {
+        budget.target_ms /= 1.25;
+    }
+    if input.just_pressed(KeyCode::KeyM) {
+        budget.mode = match budget.mode {
+            LodMode::Tclod => LodMode::Tc,
+            LodMode::Tc => LodMode::Static,
+            LodMode::Static => LodMode::Unlimited,
+            LodMode::Unlimited => LodMode::Tclod,
+        };
+    }
+    if input.just_pressed(KeyCode::KeyB) {
+        budget.strategy = match budget.strategy {
+            StrategyKind::RobinHood => StrategyKind::FunkhouserSequin,
+            StrategyKind::FunkhouserSequin => StrategyKind::FunkhouserIncremental,
+            StrategyKind::FunkhouserIncremental => StrategyKind::TriangleBudget,
+            StrategyKind::TriangleBudget => StrategyKind::RobinHood,
+        };
+        info!("strategy: {:?}", budget.strategy);
+    }
+    if input.just_pressed(KeyCode::KeyN) {
+        wind.enabled = !wind.enabled;
+    }
+    if input.just_pressed(KeyCode::KeyC) {
+        boxes.enabled = !boxes.enabled;
+    }
+    if input.just_pressed(KeyCode::KeyH) {
+        hud.visible = !hud.visible;
+    }
+}
+
+fn fly(
+    options: Res<Options>,
+    time: Res<Time<Real>>,
+    input: Res<ButtonInput<KeyCode>>,
+    mouse: Res<ButtonInput<MouseButton>>,
+    motion: Res<AccumulatedMouseMotion>,
+    mut camera: Query<&mut Transform, With<Camera3d>>,
+) {
+    if options.path.is_some() {
+        return;
+    }
+    let Ok(mut transform) = camera.single_mut() else {
+        return;
+    };
+    // Real time, capped: a slow frame must not throw the camera across the forest.
+    let dt = time.delta_secs().min(0.1);
+    let speed = if input.pressed(KeyCode::ShiftLeft) {
+        60.0
+    } else {
+        15.0
+    };
+    let mut step = Vec3::ZERO;
+    for (key, direction) in [
+        (KeyCode::KeyW, transform.forward().as_vec3()),
+        (KeyCode::KeyS, -transform.forward().as_vec3()),
+        (KeyCode::KeyA, -transform.right().as_vec3()),
+        (KeyCode::KeyD, transform.right().as_vec3()),
+        (KeyCode::KeyE, Vec3::Y),
+        (KeyCode::KeyQ, -Vec3::Y),
+    ] {
+        if input.pressed(key) {
+            step += direction;
+        }
+    }
+    transform.translation += step.normalize_or_zero() * speed * dt;
+    if mouse.pressed(MouseButton::Right) && motion.delta != Vec2::ZERO {
+        let (yaw, pitch, _) = transform.rotation.to_euler(EulerRot::YXZ);
+        let yaw = yaw - motion.delta.x * 0.003;
+        let pitch = (pitch - motion.delta.y * 0.003).clamp(-1.5, 1.5);
+        transform.rotation = Quat::from_euler(EulerRot::YXZ, yaw, pitch, 0.0);
+    }
+}
+
+/// Where the path puts the camera at `t` in [0, 1] over a terrain of `size`: position
+/// (x, z) and viewing direction (x, z).
+fn path_pose(path: CameraPath, t: f32, size: f32) -> (Vec2, Vec2) {
+    let t = t.clamp(0.0, 1.0);
+    match path {
+        // Along the forest's edge, looking in: the view takes in a growing, then a
+        // shrinking part of the forest (peak just before half way, as in the paper).
+        CameraPath::Linear => {
+            let x = size * (-0.55 + 2.0 * t);
+            (Vec2::new(x, -0.12 * size), Vec2::new(0.35, 1.0).normalize())
+        }
+        // Back and forth through the forest in three legs, turning at the edges (at a
+        // third and two thirds of the path): complexity jumps at each turn.
+        CameraPath::Zigzag => {
+            let leg = (t * 3.0).min(2.999_9);
+            let i = leg.floor();
+            let s = leg - i;
+            let z = size * (0.2 + 0.3 * i);
+            let (from, to) = if (i as u32).is_multiple_of(2) {
+                (0.08, 0.92)
+            } else {
+                (0.92, 0.08)
+            };
+            let x = size * (from + (to - from) * s);
+            let heading = Vec2::new((to - from).signum(), 0.25).normalize();
+            (Vec2::new(x, z), heading)
+        }
+    }
+}
+
+fn follow_path(
+    options: Res<Options>,
+    run: Res<Run>,
+    terrain: Query<&ForestTerrain>,
+    mut camera: Query<&mut Transform, With<Camera3d>>,
+) {
+    let (Some(path), Ok(mut transform), Ok(terrain)) =
+        (options.path, camera.single_mut(), terrain.single())
+    else {
+        return;
+    };
+    let size = terrain.terrain.size();
+    let frames = options.path_frames.unwrap_or(path.frames()).max(2);
+    let measured = run.frame.saturating_sub(options.warmup);
+    let t = measured as f32 / (frames - 1) as f32;
+    let (at, heading) = path_pose(path, t, size);
+    let ground = terrain
+        .terrain
+        .height_at(at.x.clamp(0.0, size), at.y.clamp(0.0, size));
+    let eye = Vec3::new(at.x, ground + 12.0, at.y);
+    let target = eye + Vec3::new(heading.x, -0.12, heading.y);
+    *transform = Transform::from_translation(eye).looking_at(target, Vec3::Y);
+}
+
+fn measure(
+    mut commands: Commands,
+    options: Res<Options>,
+    mut run: ResMut<Run>,
+    time: Res<Time<Real>>,
+    stats: Res<ForestRenderStats>,
+    lod: Res<LodDiagnostics>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    // Frames count from the first frame the pass drew the forest.
+    if run.frame == 0 && stats.instances == 0 {
+        return;
+    }
+    let run = &mut *run;
+    let measured_ms = time.delta_secs() * 1000.0;
+    if let Some((frame, diagnostics)) = run.pending.take() {
+        run.rows.push(Row {
+            frame,
+            diagnostics,
+            measured_ms,
+        });
+    }
+    let index = run.frame;
+    run.frame += 1;
+    if index < options.warmup {
+        return;
+    }
+    let measured = index - options.warmup;
+    let limit = options.frames.or(options
+        .path
+        .map(|p| options.path_frames.unwrap_or(p.frames())));
+    if let Some((file, k)) = &options.screenshot
+        && measured == *k
+    {
+        let target = match &run.image {
+            Some(image) => Screenshot::image(image.clone()),
+            None => Screenshot::primary_window(),
+        };
+        commands.spawn(target).observe(save_to_disk(file.clone()));
+    }
+    if limit.is_some_and(|n| measured >= n) {
+        finish(&options, &run.rows);
+        exit.write(AppExit::Success);
+        return;
+    }
+    run.pending = Some((measured, lod.clone()));
+}
+
+fn finish(options: &Options, rows: &[Row]) {
+    if let Some(file) = &options.record
+        && let Err(e) = write_csv(file, rows)
+    {
+        eprintln!("forest: {file}: {e}");
+    }
+    if options.summary {
+        println!("{}", summary(options.target_ms, rows));
+    }
+}
+
+fn write_csv(file: &str, rows: &[Row]) -> std::io::Result<()> {
+    let mut out = std::io::BufWriter::new(std::fs::File::create(file)?);
+    writeln!(
+        out,
+        "frame,visible,logic_ms,render_budget_ms,predicted_ms,measured_ms,triangles,lines,points,truncated,undrawn,target_ms"
+    )?;
+    for r in rows {
+        let d = &r.diagnostics;
+        writeln!(
+            out,
+            "{},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{:.4}",
+            r.frame,
+            d.visible_instances,
+            d.logic_ms,
+            d.render_budget_ms,
+            d.predicted_frame_ms,
+            r.measured_ms,
+            d.counts.triangles,
+            d.counts.lines,
+            d.counts.points,
+            d.truncated,
+            d.undrawn,
+            d.logic_ms + d.render_budget_ms,
+        )?;
+    }
+    out.flush()
+}
+
+fn summary(target_ms: f32, rows: &[Row]) -> String {
+    let times: Vec<f64> = rows.iter().map(|r| f64::from(r.measured_ms)).collect();
+    let n = times.len();
+    let target = f64::from(target_ms);
+    let mean = times.iter().sum::<f64>() / n.max(1) as f64;
+    let std = (times.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt();
+    let avg_err = times
+        .iter()
+        .map(|t| (t - target).abs() / target)
+        .sum::<f64>()
+        / n.max(1) as f64;
+    let mut sorted = times.clone();
+    sorted.sort_by(f64::total_cmp);
+    let percentile = |p: f64| {
+        if sorted.is_empty() {
+            0.0
+        } else {
+            sorted[((p * (n - 1) as f64).round() as usize).min(n - 1)]
+        }
+    };
+    let over = times.iter().filter(|&&t| t > 1.1 * target).count() as f64 / n.max(1) as f64 * 100.0;
+    format!(
+        "summary frames={n} target_ms={target_ms} mean_ms={mean:.3} std_ms={std:.3} avg_err={avg_err:.4} p95_ms={:.3} p99_ms={:.3} over_pct={over:.2}",
+        percentile(0.95),
+        percentile(0.99)
+    )
+}
