@@ -18,12 +18,14 @@ use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
 use bevy::input::mouse::AccumulatedMouseMotion;
 use bevy::prelude::*;
-use bevy::render::render_resource::{TextureFormat, TextureUsages};
+use bevy::render::render_resource::{PollType, TextureFormat, TextureUsages};
+use bevy::render::renderer::RenderDevice;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestTerrain};
-use bevy_sherwood::lod::StrategyKind;
+use bevy_sherwood::lod::{LodCostModel, StrategyKind};
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::wind::WindSettings;
 
@@ -42,6 +44,7 @@ usage: forest [OPTIONS]
   --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget
   --value p8|p9|p10|p11
   --no-wind              no wind
+  --no-correction        no online correction of the cost model
   --width W --height H   window or image size (default 960x540)
   --record FILE.csv      one row per measured frame
   --summary              print one summary line at exit
@@ -79,6 +82,7 @@ struct Options {
     strategy: StrategyKind,
     value: ValueFunction,
     wind: bool,
+    correction: bool,
     width: u32,
     height: u32,
     record: Option<String>,
@@ -101,6 +105,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         strategy: StrategyKind::RobinHood,
         value: ValueFunction::P11,
         wind: true,
+        correction: true,
         width: 960,
         height: 540,
         record: None,
@@ -162,6 +167,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
                 };
             }
             "--no-wind" => o.wind = false,
+            "--no-correction" => o.correction = false,
             "--width" => o.width = number("--width", it.next())?,
             "--height" => o.height = number("--height", it.next())?,
             "--record" => o.record = Some(it.next().ok_or("--record needs a file")?.clone()),
@@ -243,6 +249,10 @@ fn main() -> AppExit {
     if options.headless {
         app.add_plugins(DefaultPlugins.set(window).disable::<WinitPlugin>())
             .add_plugins(ScheduleRunnerPlugin::run_loop(Duration::ZERO));
+        // Without a swapchain nothing holds the CPU back while the GPU queue grows: wait
+        // for each frame's GPU work so that frame times are real.
+        app.sub_app_mut(RenderApp)
+            .add_systems(Render, wait_for_gpu.in_set(RenderSystems::Cleanup));
     } else {
         app.add_plugins(DefaultPlugins.set(window));
     }
@@ -263,11 +273,19 @@ fn main() -> AppExit {
         enabled: options.wind,
         ..default()
     })
+    .insert_resource(LodCostModel {
+        online: options.correction,
+        ..default()
+    })
     .insert_resource(options)
     .init_resource::<Run>()
     .add_systems(Startup, setup)
     .add_systems(Update, (keys, fly, follow_path, measure).chain())
     .run()
+}
+
+fn wait_for_gpu(device: Res<RenderDevice>) {
+    let _ = device.poll(PollType::wait_indefinitely());
 }
 
 fn setup(
@@ -324,6 +342,8 @@ fn setup(
     ));
     let mut camera = commands.spawn((
         Camera3d::default(),
+        // Multisampling quadruples the rasteriser's work on a software renderer.
+        Msaa::Off,
         Transform::from_xyz(-0.1 * size, 25.0, -0.1 * size)
             .looking_at(Vec3::new(size * 0.5, 0.0, size * 0.5), Vec3::Y),
     ));

@@ -5,7 +5,7 @@ use bevy::asset::AssetPlugin;
 use bevy::prelude::*;
 use bevy_sherwood::culling::FrustumPlanes;
 use bevy_sherwood::draw::TreeDrawList;
-use bevy_sherwood::lod::StrategyKind;
+use bevy_sherwood::lod::{LodCostModel, MeasuredPassTime, StrategyKind};
 use bevy_sherwood::prelude::*;
 
 const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
@@ -22,6 +22,9 @@ fn app() -> App {
         TransformPlugin,
         SherwoodPlugins,
     ));
+    // Fixed costs: these tests compare selections across frames, which the online
+    // correction would otherwise tune to this test's own frame times.
+    app.world_mut().resource_mut::<LodCostModel>().online = false;
     let handle = app
         .world()
         .resource::<AssetServer>()
@@ -264,4 +267,27 @@ fn the_diagnostics_plugin_publishes_the_frame() {
     );
     assert_eq!(read("sherwood/triangles"), d.counts.triangles as f64);
     assert!(read("sherwood/render_budget") > 0.0);
+}
+
+#[test]
+fn the_online_correction_learns_the_pass_time_and_the_overhead() {
+    let mut app = app();
+    app.world_mut().resource_mut::<LodCostModel>().online = true;
+    let first = frame(&mut app, with(LodMode::Tclod, 200.0));
+    assert!(first.cost_factor > 0.0 && first.cost_factor.is_finite());
+    // A renderer three times slower than the calibration says, measured every frame.
+    for _ in 0..40 {
+        let predicted = app.world().resource::<LodDiagnostics>().predicted_render_ms
+            / app.world().resource::<LodDiagnostics>().cost_factor;
+        app.world_mut().resource_mut::<MeasuredPassTime>().0 = Some(3.0 * predicted);
+        frame(&mut app, with(LodMode::Tclod, 200.0));
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let model = app.world().resource::<LodCostModel>().clone();
+    let factor = model.render_correction.factor();
+    assert!(factor > 1.5 && factor < 3.5, "factor {factor}");
+    assert!(model.overhead.is_some_and(|o| o.is_finite() && o >= 0.0));
+    let d = app.world().resource::<LodDiagnostics>().clone();
+    assert!((d.cost_factor - factor).abs() / factor < 0.5);
+    assert_eq!(d.undrawn, 0);
 }

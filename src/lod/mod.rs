@@ -38,7 +38,7 @@ use crate::budget::{
     FunkhouserSequin, Level, ObjectDesc, PreviousSelection, RobinHood, TriangleBudget,
     ValueFunction, ValueInputs, ValueModel,
 };
-use crate::cost::Calibration;
+use crate::cost::{Calibration, OnlineCorrection};
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::ecosystem::TreeInstance;
@@ -127,13 +127,48 @@ impl Default for FrameBudget {
 /// for the ladder strategies (best → cheapest; 0 gives the cheapest representation).
 pub const LADDER_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
 
-/// The costs the budget predicts with. Until a calibration is loaded, the documented
-/// [`Calibration::default`].
-#[derive(Resource, Clone, Debug, Default)]
+/// The costs the budget predicts with: a calibration (until one is loaded, the
+/// documented [`Calibration::default`]) and its online correction.
+///
+/// With `online` (the default) every frame compares what the calibration alone predicted
+/// for the forest pass with the pass's measured time ([`MeasuredPassTime`], filled by the
+/// render plugin from the GPU timestamps when Bevy's `RenderDiagnosticsPlugin` is added)
+/// and smooths the ratio into `render_correction` (see [`crate::cost`]); the rest of the
+/// frame — app logic, other rendering, presentation — is measured as the frame time minus
+/// the pass time and smoothed into `overhead`, which then replaces the logic table's
+/// estimate. Without a measured pass time the whole frame beyond the logic estimate is
+/// attributed to the pass. Predictions stay predictive: a jump in scene complexity moves
+/// the prediction at once, only the per-primitive factor is learned.
+#[derive(Resource, Clone, Debug)]
 pub struct LodCostModel {
     /// Per-primitive and logic costs.
     pub calibration: Calibration,
+    /// Learn from measured times (default on).
+    pub online: bool,
+    /// Learned factor on the calibrated per-primitive costs.
+    pub render_correction: OnlineCorrection,
+    /// Learned time of everything but the forest pass, seconds; `None` until measured.
+    pub overhead: Option<f32>,
 }
+
+impl Default for LodCostModel {
+    fn default() -> Self {
+        Self {
+            calibration: Calibration::default(),
+            online: true,
+            render_correction: OnlineCorrection::default(),
+            overhead: None,
+        }
+    }
+}
+
+/// Time constant, seconds, of the smoothing of the learned overhead.
+pub const OVERHEAD_TIME_CONSTANT: f32 = 1.0;
+
+/// The forest pass's measured time of a recent frame, in milliseconds, when something
+/// measures it (the render plugin, from GPU timestamps).
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+pub struct MeasuredPassTime(pub Option<f32>);
 
 /// What the LOD stages did in the last frame.
 #[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
@@ -155,6 +190,8 @@ pub struct LodDiagnostics {
     pub measured_frame_ms: f32,
     /// Rendering time handed out but not used by anyone, ms.
     pub wasted_ms: f32,
+    /// The learned factor on the calibrated primitive costs (1 without online correction).
+    pub cost_factor: f32,
     /// Predicted rendering time beyond the rendering time, ms: cheapest representations
     /// that did not fit (Robin Hood draws them truncated, the triangle budget never goes
     /// below them).
@@ -185,6 +222,7 @@ impl Plugin for LodPlugin {
             .register_type::<LodDiagnostics>()
             .init_resource::<FrameBudget>()
             .init_resource::<LodCostModel>()
+            .init_resource::<MeasuredPassTime>()
             .init_resource::<LodDiagnostics>()
             .init_resource::<LodFrame>()
             .add_systems(
@@ -193,7 +231,9 @@ impl Plugin for LodPlugin {
                     (give_draw_lists, value_objects)
                         .chain()
                         .in_set(SherwoodSystems::Value),
-                    hand_out_time.in_set(SherwoodSystems::Budget),
+                    (learn_costs, hand_out_time)
+                        .chain()
+                        .in_set(SherwoodSystems::Budget),
                     write_draw_lists.in_set(SherwoodSystems::Select),
                 ),
             );
@@ -244,6 +284,8 @@ struct LodFrame {
     ranked_models: usize,
     value_ms: f32,
     warned_target: bool,
+    /// Last frame's pass prediction by the calibration alone, seconds.
+    last_uncorrected: Option<f32>,
 }
 
 fn give_draw_lists(
@@ -406,6 +448,42 @@ fn value_objects(
     frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
 }
 
+fn learn_costs(
+    mut model: ResMut<LodCostModel>,
+    frame: Res<LodFrame>,
+    measured: Res<MeasuredPassTime>,
+    time: Res<Time<Real>>,
+) {
+    let dt = time.delta_secs();
+    let (true, Some(predicted)) = (model.online, frame.last_uncorrected) else {
+        return;
+    };
+    if !(dt.is_finite() && dt > 0.0) {
+        return;
+    }
+    match measured
+        .0
+        .map(|ms| ms / 1000.0)
+        .filter(|t| t.is_finite() && *t > 0.0)
+    {
+        Some(pass) => {
+            model.render_correction.update(predicted, pass, dt);
+            // The rest of the frame is measured against a pass time from an earlier frame
+            // (timestamps come back late), so it is smoothed over longer.
+            let alpha = 1.0 - (-dt / OVERHEAD_TIME_CONSTANT).exp();
+            let rest = (dt - pass).max(0.0);
+            model.overhead = Some(match model.overhead {
+                Some(o) => o + alpha * (rest - o),
+                None => rest,
+            });
+        }
+        None => {
+            let logic = model.calibration.logic.time(frame.trees.len() as u32);
+            model.render_correction.update(predicted, dt - logic, dt);
+        }
+    }
+}
+
 fn hand_out_time(
     mut frame: ResMut<LodFrame>,
     budget: Res<FrameBudget>,
@@ -417,8 +495,16 @@ fn hand_out_time(
     let start = Instant::now();
     let frame = &mut *frame;
     let calibration = &cost_model.calibration;
-    let costs = PrimitiveCosts::from_calibration(calibration, 1.0);
-    let logic = calibration.logic.time(frame.trees.len() as u32);
+    let factor = if cost_model.online {
+        cost_model.render_correction.factor()
+    } else {
+        1.0
+    };
+    let costs = PrimitiveCosts::from_calibration(calibration, factor);
+    let logic = match (cost_model.online, cost_model.overhead) {
+        (true, Some(overhead)) => overhead,
+        _ => calibration.logic.time(frame.trees.len() as u32),
+    };
     let target = (budget.target_ms.max(0.0)) / 1000.0;
     let model = FrameTimeModel {
         machine_constant: budget.machine_constant,
@@ -435,9 +521,11 @@ fn hand_out_time(
     } else {
         frame.warned_target = false;
     }
-    let fixed = calibration.triangles.fixed
+    let fixed = (calibration.triangles.fixed
         + calibration.lines.first().map_or(0.0, |c| c.fixed)
-        + calibration.points.first().map_or(0.0, |c| c.fixed);
+        + calibration.points.first().map_or(0.0, |c| c.fixed))
+    .max(0.0)
+        * factor;
     let rendering = (model.rendering_time(logic, target) - fixed.max(0.0)).max(0.0);
 
     // Per tree, a fresh list.
@@ -610,6 +698,7 @@ fn hand_out_time(
             counts += list.counts(m);
         }
     }
+    frame.last_uncorrected = Some((predicted + fixed) / factor);
     *diagnostics = LodDiagnostics {
         visible_objects: frame.objects.len() as u32,
         visible_instances: frame.trees.len() as u32,
@@ -620,6 +709,7 @@ fn hand_out_time(
         measured_frame_ms: time.delta_secs() * 1000.0,
         wasted_ms: wasted * 1000.0,
         overrun_ms: (predicted - rendering).max(0.0) * 1000.0,
+        cost_factor: factor,
         counts,
         truncated,
         undrawn,

@@ -154,6 +154,7 @@ fn receive_stats(
     mailbox: Res<StatsMailbox>,
     mut stats: ResMut<ForestRenderStats>,
     store: Option<Res<DiagnosticsStore>>,
+    measured: Option<ResMut<crate::lod::MeasuredPassTime>>,
 ) {
     let Ok(latest) = mailbox.0.lock() else {
         return;
@@ -165,6 +166,9 @@ fn receive_stats(
         .as_deref()
         .and_then(|s| s.get(&GPU_TIME))
         .and_then(bevy::diagnostic::Diagnostic::value);
+    if let (Some(mut measured), Some(ms)) = (measured, latest.gpu_time_ms) {
+        measured.0 = Some(ms as f32);
+    }
     stats.set_if_neq(latest);
 }
 
