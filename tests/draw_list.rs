@@ -1,21 +1,12 @@
 //! Packing tree geometry and draw lists into the render pass's records (pure, headless).
 
+mod common;
+use common::species;
+
 use bevy::math::Vec3;
 use bevy_sherwood::draw::*;
-use bevy_sherwood::tree::{SpeciesDesc, TreeModel};
+use bevy_sherwood::tree::TreeModel;
 use proptest::prelude::*;
-
-fn species(name: &str) -> TreeModel {
-    let path = format!(
-        "{}/assets/species/{name}.species.ron",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    SpeciesDesc::from_ron_str(&std::fs::read_to_string(path).unwrap())
-        .unwrap()
-        .generate_and_analyze()
-        .unwrap()
-        .model
-}
 
 fn chunk_ranges(chunks: &[GpuChunk]) -> Vec<(u32, u32, u32)> {
     chunks

@@ -1,24 +1,15 @@
 //! A headless app: a forest spawned from the default ecosystem file, culled against a
 //! view, respawned on change.
 
-use bevy::asset::AssetPlugin;
+mod common;
+
 use bevy::prelude::*;
 use bevy_sherwood::culling::{CullResult, FrustumPlanes, cull_brute_force};
 use bevy_sherwood::ecosystem::{ForestState, ForestTerrain};
 use bevy_sherwood::prelude::*;
 
 fn app() -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin {
-            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
-            ..Default::default()
-        },
-        TransformPlugin,
-        SherwoodPlugins,
-    ));
-    app
+    common::headless_app()
 }
 
 /// Updates until the culling hierarchy exists (bounded).

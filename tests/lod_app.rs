@@ -1,7 +1,8 @@
 //! The time-critical LOD stages in a headless app: the default forest, culled and
 //! budgeted against a fixed view.
 
-use bevy::asset::AssetPlugin;
+mod common;
+
 use bevy::prelude::*;
 use bevy_sherwood::culling::FrustumPlanes;
 use bevy_sherwood::draw::TreeDrawList;
@@ -12,16 +13,7 @@ const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
 const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);
 
 fn app() -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin {
-            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
-            ..Default::default()
-        },
-        TransformPlugin,
-        SherwoodPlugins,
-    ));
+    let mut app = common::headless_app();
     // Fixed costs: these tests compare selections across frames, which the online
     // correction would otherwise tune to this test's own frame times.
     app.world_mut().resource_mut::<LodCostModel>().online = false;

@@ -1,21 +1,15 @@
 //! The per-object searches of the time-critical modes, on a shipped species.
 
+mod common;
+
 use bevy::math::Vec3;
 use bevy_sherwood::cost::Calibration;
 use bevy_sherwood::draw::TreeDrawList;
 use bevy_sherwood::lod::select::*;
-use bevy_sherwood::tree::{PixelRange, Projection, SpeciesDesc, TreeModel};
+use bevy_sherwood::tree::{PixelRange, Projection, TreeModel};
 
 fn model() -> TreeModel {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/species/grand.species.ron"
-    );
-    SpeciesDesc::from_ron_str(&std::fs::read_to_string(path).unwrap())
-        .unwrap()
-        .generate_and_analyze()
-        .unwrap()
-        .model
+    common::species("grand")
 }
 
 fn view(depth: f32) -> TreeView {

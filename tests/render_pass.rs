@@ -5,6 +5,9 @@
 //! saves what it rendered under `target/gpu-tests/` for a human to look at.
 #![cfg(feature = "gpu-tests")]
 
+mod common;
+use common::species;
+
 use std::sync::{Arc, Mutex};
 
 use bevy::app::PluginsState;
@@ -21,7 +24,7 @@ use bevy::winit::WinitPlugin;
 use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
 use bevy_sherwood::ecosystem::TreeInstance;
 use bevy_sherwood::render::ForestRenderPlugin;
-use bevy_sherwood::tree::{AnalysisOptions, MeshData, SpeciesDesc, TreeModel, TreePlugin, analyze};
+use bevy_sherwood::tree::{AnalysisOptions, MeshData, TreeModel, TreePlugin, analyze};
 use bevy_sherwood::{SherwoodCorePlugin, prelude::ForestRenderStats};
 
 const SIZE: u32 = 256;
@@ -199,19 +202,6 @@ fn render_views(
     }
     let stats = app.world().resource::<ForestRenderStats>().clone();
     (pictures, stats)
-}
-
-fn species(name: &str) -> TreeModel {
-    let path = format!(
-        "{}/assets/species/{name}.species.ron",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let text = std::fs::read_to_string(path).unwrap();
-    SpeciesDesc::from_ron_str(&text)
-        .unwrap()
-        .generate_and_analyze()
-        .unwrap()
-        .model
 }
 
 /// A vertical column along +Y: rings of radius 0.1 at heights 0, 1, 2 and 3.

@@ -1,6 +1,8 @@
 //! Tree assets: loading species and saved models through Bevy's asset server, and the
 //! saved formats' round trips and errors.
 
+mod common;
+
 use std::path::PathBuf;
 
 use bevy::asset::{AssetPlugin, LoadState};
@@ -8,16 +10,7 @@ use bevy::prelude::*;
 use bevy_sherwood::tree::*;
 
 fn slender() -> TreeModel {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/species/slender.species.ron"
-    );
-    let text = std::fs::read_to_string(path).unwrap();
-    SpeciesDesc::from_ron_str(&text)
-        .unwrap()
-        .generate_and_analyze()
-        .unwrap()
-        .model
+    common::species("slender")
 }
 
 /// A scratch asset folder holding `files`.

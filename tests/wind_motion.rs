@@ -1,20 +1,13 @@
 //! Moving a tree's rings with springs.
 
+mod common;
+
 use bevy::math::{Quat, Vec3};
-use bevy_sherwood::tree::{SpeciesDesc, TreeModel};
+use bevy_sherwood::tree::TreeModel;
 use bevy_sherwood::wind::*;
 
 fn model() -> TreeModel {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/species/broad.species.ron"
-    );
-    let text = std::fs::read_to_string(path).unwrap();
-    SpeciesDesc::from_ron_str(&text)
-        .unwrap()
-        .generate_and_analyze()
-        .unwrap()
-        .model
+    common::species("broad")
 }
 
 /// Thick rings follow spring 0 at 50%, thin ones spring 1 at 90%.
