@@ -248,6 +248,29 @@ pub struct ModelSlot {
 }
 
 impl ModelSlot {
+    /// The counts and leaf prefix of `model` alone, at offset 0: enough for
+    /// [`ModelSlot::counts`] without packing the geometry.
+    pub fn of(model: &TreeModel) -> Self {
+        let mut prefix = Vec::with_capacity(model.leaves.len() + 1);
+        prefix.push(0);
+        let mut total = 0;
+        for leaf in &model.leaves {
+            total += leaf.triangles.len() as u32;
+            prefix.push(total);
+        }
+        Self {
+            trunk_triangles: 0,
+            trunk_triangle_count: model.trunk_triangle_count() as u32,
+            leaf_triangles: 0,
+            leaf_triangle_prefix: prefix,
+            lines: 0,
+            line_count: model.segments.len() as u32,
+            points: 0,
+            point_count: model.leaves.len() as u32,
+            rings: model.rings.len() as u32,
+        }
+    }
+
     /// How many primitives `list` draws of this model (ranges clipped to the model), in
     /// time proportional to the number of ranges.
     pub fn counts(&self, list: &TreeDrawList) -> PrimitiveCounts {

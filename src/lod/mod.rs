@@ -40,7 +40,7 @@ use crate::budget::{
 };
 use crate::cost::{Calibration, OnlineCorrection};
 use crate::culling::{ForestCulling, InstanceVisibility};
-use crate::draw::{PrimitiveCounts, TreeDrawList};
+use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList};
 use crate::ecosystem::TreeInstance;
 use crate::tree::{PixelRange, TreeModel};
 use crate::view::LodView;
@@ -281,6 +281,8 @@ struct LodFrame {
     scratch: TreeDrawList,
     /// Complexity rank of each (model, leaves) object type; rebuilt when models change.
     type_rank: HashMap<(AssetId<TreeModel>, bool), (u32, f32)>,
+    /// Per model, what counting a draw list needs (rebuilt with `type_rank`).
+    slots: HashMap<AssetId<TreeModel>, ModelSlot>,
     ranked_models: usize,
     value_ms: f32,
     warned_target: bool,
@@ -348,6 +350,10 @@ fn value_objects(
     if frame.ranked_models != models.len() || frame.type_rank.is_empty() {
         let costs = PrimitiveCosts::from_calibration(&cost_model.calibration, 1.0);
         frame.type_rank = object_types(&models, &costs);
+        frame.slots = models
+            .iter()
+            .map(|(id, m)| (id, ModelSlot::of(m)))
+            .collect();
         frame.ranked_models = models.len();
     }
     let projection = view.projection();
@@ -694,8 +700,8 @@ fn hand_out_time(
 
     let mut counts = PrimitiveCounts::default();
     for (tree, list) in frame.trees.iter().zip(&frame.lists) {
-        if let Some(m) = models.get(tree.model) {
-            counts += list.counts(m);
+        if let Some(slot) = frame.slots.get(&tree.model) {
+            counts += slot.counts(list);
         }
     }
     frame.last_uncorrected = Some((predicted + fixed) / factor);
