@@ -42,7 +42,7 @@ use crate::cost::{Calibration, OnlineCorrection};
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList};
 use crate::ecosystem::TreeInstance;
-use crate::tree::{PixelRange, TreeModel};
+use crate::tree::{PixelRange, TreeModel, TreeModelsVersion};
 use crate::view::LodView;
 
 use select::{LeafMethod, PrimitiveCosts, TreeView, VisibleGroup};
@@ -221,6 +221,7 @@ impl Plugin for LodPlugin {
         app.register_type::<FrameBudget>()
             .register_type::<LodDiagnostics>()
             .init_resource::<FrameBudget>()
+            .init_resource::<TreeModelsVersion>()
             .init_resource::<LodCostModel>()
             .init_resource::<MeasuredPassTime>()
             .init_resource::<LodDiagnostics>()
@@ -283,7 +284,7 @@ struct LodFrame {
     type_rank: HashMap<(AssetId<TreeModel>, bool), (u32, f32)>,
     /// Per model, what counting a draw list needs (rebuilt with `type_rank`).
     slots: HashMap<AssetId<TreeModel>, ModelSlot>,
-    ranked_models: usize,
+    ranked_version: Option<u64>,
     value_ms: f32,
     warned_target: bool,
     /// Last frame's pass prediction by the calibration alone, seconds.
@@ -336,6 +337,7 @@ fn value_objects(
     views: Query<&LodView>,
     instances: Query<&TreeInstance>,
     models: Res<Assets<TreeModel>>,
+    version: Res<TreeModelsVersion>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -347,14 +349,14 @@ fn value_objects(
     let (Some(culling), Some(view)) = (culling, views.iter().next()) else {
         return;
     };
-    if frame.ranked_models != models.len() || frame.type_rank.is_empty() {
+    if frame.ranked_version != Some(version.0) {
         let costs = PrimitiveCosts::from_calibration(&cost_model.calibration, 1.0);
         frame.type_rank = object_types(&models, &costs);
         frame.slots = models
             .iter()
             .map(|(id, m)| (id, ModelSlot::of(m)))
             .collect();
-        frame.ranked_models = models.len();
+        frame.ranked_version = Some(version.0);
     }
     let projection = view.projection();
     let value_of = |area: f32, at: Vec3, importance: f32| {

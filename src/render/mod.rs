@@ -56,7 +56,7 @@ use crate::draw::{
     TreeShading,
 };
 use crate::ecosystem::TreeInstance;
-use crate::tree::{NO_RING, TreeModel};
+use crate::tree::{NO_RING, TreeModel, TreeModelsVersion};
 use crate::wind::RingOffsetTable;
 
 /// Name of the pass in Bevy's render diagnostics: its GPU time is published as
@@ -89,11 +89,6 @@ pub struct ForestRenderStats {
     pub gpu_time_ms: Option<f64>,
 }
 
-/// Bumped whenever a tree model is added, changed or removed, so the render world
-/// re-packs the shared geometry.
-#[derive(Resource, Default)]
-struct GeometryVersion(u64);
-
 /// Shared between the worlds: stats written by the render world, read by the main world.
 #[derive(Resource, Clone, Default)]
 struct StatsMailbox(Arc<Mutex<ForestRenderStats>>);
@@ -106,9 +101,8 @@ impl Plugin for ForestRenderPlugin {
             .register_type::<TreeShading>()
             .register_type::<ForestRenderStats>()
             .init_resource::<ForestRenderStats>()
-            .init_resource::<GeometryVersion>()
+            .init_resource::<TreeModelsVersion>()
             .insert_resource(mailbox.clone())
-            .add_systems(PostUpdate, bump_geometry_version)
             .add_systems(PreUpdate, receive_stats);
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
@@ -134,19 +128,6 @@ impl Plugin for ForestRenderPlugin {
                     .after(main_opaque_pass_3d)
                     .in_set(Core3dSystems::MainPass),
             );
-    }
-}
-
-fn bump_geometry_version(
-    mut events: MessageReader<AssetEvent<TreeModel>>,
-    mut version: ResMut<GeometryVersion>,
-) {
-    let mut changed = false;
-    for event in events.read() {
-        changed |= !matches!(event, AssetEvent::Unused { .. });
-    }
-    if changed {
-        version.0 += 1;
     }
 }
 
@@ -227,7 +208,7 @@ struct ForestFrame {
 )]
 fn extract_forest(
     mut frame: ResMut<ForestFrame>,
-    version: Extract<Res<GeometryVersion>>,
+    version: Extract<Res<TreeModelsVersion>>,
     models: Extract<Res<Assets<TreeModel>>>,
     trees: Extract<
         Query<(

@@ -2,9 +2,12 @@
 //! (`*.species.ron`), and analysed models saved to disk so large trees are analysed once
 //! (`*.tree.ron`, readable, or `*.tree.bin`, compact and fast).
 
-use bevy::app::{App, Plugin};
+use bevy::app::{App, Plugin, PostUpdate};
+use bevy::asset::AssetEvent;
 use bevy::asset::io::Reader;
 use bevy::asset::{AssetApp, AssetLoader, LoadContext};
+use bevy::ecs::message::MessageReader;
+use bevy::ecs::prelude::{IntoScheduleConfigs, ResMut, Resource};
 use bevy::log::warn;
 use bevy::reflect::TypePath;
 
@@ -280,9 +283,32 @@ impl AssetLoader for TreeModelLoader {
 #[derive(Default)]
 pub struct TreePlugin;
 
+/// Bumped whenever a tree model is added, changed or removed, so that whatever is
+/// derived from the set of models (packed geometry, object-type ranks) is rebuilt.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TreeModelsVersion(pub u64);
+
+fn bump_models_version(
+    mut events: MessageReader<AssetEvent<TreeModel>>,
+    mut version: ResMut<TreeModelsVersion>,
+) {
+    let mut changed = false;
+    for event in events.read() {
+        changed |= !matches!(event, AssetEvent::Unused { .. });
+    }
+    if changed {
+        version.0 += 1;
+    }
+}
+
 impl Plugin for TreePlugin {
     fn build(&self, app: &mut App) {
         app.init_asset::<TreeModel>()
+            .init_resource::<TreeModelsVersion>()
+            .add_systems(
+                PostUpdate,
+                bump_models_version.before(crate::SherwoodSystems::Animate),
+            )
             .register_asset_loader(SpeciesLoader)
             .register_asset_loader(TreeModelLoader);
         #[cfg(feature = "gltf")]

@@ -16,7 +16,8 @@ pub use analyze::{
     AnalysisOptions, AnalysisWarning, MeshData, TreeAnalysis, TreeAnalysisError, TreePart, analyze,
 };
 pub use asset::{
-    BINARY_MAGIC, BINARY_VERSION, SpeciesLoader, TreeFileError, TreeModelLoader, TreePlugin,
+    BINARY_MAGIC, BINARY_VERSION, SpeciesLoader, TreeFileError, TreeModelLoader, TreeModelsVersion,
+    TreePlugin,
 };
 #[cfg(feature = "gltf")]
 pub use gltf::{
