@@ -91,35 +91,10 @@ impl TreeDrawList {
             && self.leaf_points.iter().all(|r| r.leaves.is_empty())
     }
 
-    /// How many primitives it draws of `model` (ranges clipped to the model).
+    /// How many primitives it draws of `model` (ranges clipped to the model). Builds the
+    /// model's leaf prefix each call; keep a [`ModelSlot`] to count many lists.
     pub fn counts(&self, model: &TreeModel) -> PrimitiveCounts {
-        let trunk = clip(&self.trunk_triangles, model.trunk_triangle_count() as u32);
-        let segments = model.segments.len() as u32;
-        let leaves = model.leaves.len() as u32;
-        let leaf_triangles: u32 = self
-            .leaf_triangles
-            .iter()
-            .map(|r| {
-                let r = clip(r, leaves);
-                model.leaves[r.start as usize..r.end as usize]
-                    .iter()
-                    .map(|l| l.triangles.len() as u32)
-                    .sum::<u32>()
-            })
-            .sum();
-        PrimitiveCounts {
-            triangles: u64::from(trunk.len() as u32 + leaf_triangles),
-            lines: self
-                .trunk_lines
-                .iter()
-                .map(|r| u64::from(clip(&r.segments, segments).len() as u32))
-                .sum(),
-            points: self
-                .leaf_points
-                .iter()
-                .map(|r| u64::from(clip(&r.leaves, leaves).len() as u32))
-                .sum(),
-        }
+        ModelSlot::of(model).counts(self)
     }
 }
 
@@ -358,13 +333,10 @@ impl GeometryAtlas {
                 }),
         );
         let leaf_triangles = first_triangle(self);
-        let mut leaf_triangle_prefix = Vec::with_capacity(model.leaves.len() + 1);
-        leaf_triangle_prefix.push(0);
         for leaf in &model.leaves {
             let indices = &model.leaf_indices[leaf.triangles.start as usize * 3..];
             let indices = &indices[..leaf.triangles.len() * 3];
             self.indices.extend(indices.iter().map(|&i| leaf_base + i));
-            leaf_triangle_prefix.push(first_triangle(self) - leaf_triangles);
         }
 
         let lines = self.primitives.len() as u32;
@@ -396,14 +368,10 @@ impl GeometryAtlas {
         }));
         ModelSlot {
             trunk_triangles,
-            trunk_triangle_count: model.trunk_triangle_count() as u32,
             leaf_triangles,
-            leaf_triangle_prefix,
             lines,
-            line_count: model.segments.len() as u32,
             points,
-            point_count: model.leaves.len() as u32,
-            rings: model.rings.len() as u32,
+            ..ModelSlot::of(model)
         }
     }
 }

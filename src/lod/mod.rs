@@ -555,39 +555,21 @@ fn hand_out_time(
                     continue;
                 };
                 let groups = &frame.groups[tree.groups.start as usize..tree.groups.end as usize];
-                if budget.mode == LodMode::Unlimited {
-                    if tree.trunk_visible {
-                        list.trunk_triangles = 0..m.trunk_triangle_count() as u32;
-                        let area = select::trunk_triangle_area(m, &tree.view);
-                        predicted += costs.triangles(list.trunk_triangles.len() as u32, area);
+                let unlimited = budget.mode == LodMode::Unlimited;
+                if tree.trunk_visible {
+                    predicted += if unlimited {
+                        select::trunk_tc(m, &tree.view, &costs, f32::INFINITY, list)
+                    } else {
+                        select::trunk_static(m, &tree.view, &costs, budget.line_widths, list)
                     }
-                    let per_leaf = m.leaf_triangle_count() as f32 / m.leaves.len().max(1) as f32;
-                    for g in groups {
-                        let r = m.leaf_groups[g.group as usize].leaves.clone();
-                        let n = r.len() as u32;
-                        match list.leaf_triangles.last_mut() {
-                            Some(last) if last.end == r.start => last.end = r.end,
-                            _ => list.leaf_triangles.push(r),
-                        }
-                        let pixels =
-                            select::group_area(m, &tree.view, 1, g.depth) / per_leaf.max(1.0);
-                        predicted += costs.triangles(1, pixels) * per_leaf * n as f32;
-                    }
-                } else {
-                    if tree.trunk_visible {
-                        predicted += static_trunk(m, &tree.view, &costs, budget.line_widths, list);
-                    }
-                    predicted += select::leaves(
-                        m,
-                        &tree.view,
-                        &costs,
-                        LeafMethod::Static(budget.point_sizes.min.max(1)),
-                        groups,
-                        0.0,
-                        list,
-                    )
                     .cost;
                 }
+                let method = if unlimited {
+                    LeafMethod::Full
+                } else {
+                    LeafMethod::Static(budget.point_sizes.min.max(1))
+                };
+                predicted += select::leaves(m, &tree.view, &costs, method, groups, 0.0, list).cost;
             }
         }
         LodMode::Tc | LodMode::Tclod => {
@@ -725,47 +707,6 @@ fn hand_out_time(
         budget_stage_ms: start.elapsed().as_secs_f32() * 1000.0,
         select_stage_ms: 0.0,
     };
-}
-
-fn static_trunk(
-    model: &TreeModel,
-    view: &TreeView,
-    costs: &PrimitiveCosts,
-    widths: PixelRange,
-    list: &mut TreeDrawList,
-) -> f32 {
-    let lod = crate::tree::trunk_lod(
-        model,
-        view.scale,
-        view.trunk_depth,
-        &view.projection,
-        widths,
-    );
-    list.trunk_lines.clear();
-    let px = view.projection.pixels(view.scale, view.trunk_depth);
-    let mut cost = 0.0;
-    for (w, r) in lod.lines {
-        let c = &model.segments.cumulative_length;
-        let before = if r.start == 0 {
-            0.0
-        } else {
-            c[r.start as usize - 1]
-        };
-        let length = (c[r.end as usize - 1] - before) * px * select::PROJECTED_LENGTH_FACTOR;
-        cost += costs.lines(w, r.end - r.start, length);
-        list.trunk_lines.push(crate::draw::LineRun {
-            segments: r,
-            width: w,
-        });
-    }
-    let offsets = &model.segments.triangle_offsets;
-    let total = offsets.last().copied().unwrap_or(0);
-    let first = offsets
-        .get(lod.triangles.start as usize)
-        .copied()
-        .unwrap_or(total);
-    list.trunk_triangles = first..total;
-    cost + costs.triangles(total - first, select::trunk_triangle_area(model, view))
 }
 
 fn write_draw_lists(

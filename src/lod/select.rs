@@ -248,6 +248,37 @@ impl LinePlan {
     }
 }
 
+/// Static trunk (thesis §4.4.1): the pixel-driven lines of several widths for the thin
+/// segments and triangles for the rest, whatever the time.
+pub fn trunk_static(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    widths: PixelRange,
+    out: &mut TreeDrawList,
+) -> Selected {
+    let lod = crate::tree::trunk_lod(
+        model,
+        view.scale,
+        view.trunk_depth,
+        &view.projection,
+        widths,
+    );
+    let k = lod.triangles.start;
+    let plan = LinePlan {
+        runs: lod.lines,
+        dropped: lod.dropped.end,
+    };
+    plan.write(k, out);
+    out.trunk_triangles = thick_end(model, k);
+    let px = pixels_per_unit(view, view.trunk_depth);
+    let area = trunk_triangle_area(model, view);
+    Selected {
+        cost: plan.lines_cost(model, costs, px, k) + trunk_triangle_cost(model, costs, k, area),
+        truncated: false,
+    }
+}
+
 /// TCLOD trunk (thesis §6.5): the static LOD's lines of several widths for the thin
 /// segments and triangles for the rest. With time to spare, line segments go back to
 /// triangles, thickest first, as many as fit (the integer solution of T-6.21..6.24);
@@ -367,6 +398,8 @@ pub enum LeafMethod {
     Tclod(PixelRange),
     /// The static LOD at one point size.
     Static(u32),
+    /// Every leaf as triangles (full detail), whatever the time.
+    Full,
 }
 
 /// A tree's leaves: the time is shared among its visible groups by projected area, each
@@ -413,6 +446,13 @@ pub fn leaves(
         let triangle_leaf = costs.triangles(1, leaf_pixels) * triangles_per_leaf;
         let chosen = match method {
             LeafMethod::Tc => group_tc(&leaves, triangle_leaf, given, out),
+            LeafMethod::Full => {
+                write_group(&leaves, 0, true, n, 1, out);
+                Selected {
+                    cost: triangle_leaf * n as f32,
+                    truncated: false,
+                }
+            }
             LeafMethod::Static(size) => {
                 let (points, far, tris) = static_split(n, area, size);
                 write_group(&leaves, points, far, tris, size, out);
