@@ -8,24 +8,17 @@
 
 use std::time::Duration;
 
-use bevy::asset::AssetPlugin;
 use bevy::prelude::*;
 use bevy_sherwood::culling::FrustumPlanes;
 use bevy_sherwood::ecosystem::EcosystemDesc;
 use bevy_sherwood::prelude::*;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 fn forest_app(trees: u32) -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin {
-            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
-            ..Default::default()
-        },
-        TransformPlugin,
-        SherwoodPlugins,
-    ));
+    let mut app = common::headless_app();
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/assets/forests/default.ecosystem.ron"

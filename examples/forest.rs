@@ -91,6 +91,13 @@ struct Options {
     headless: bool,
 }
 
+impl Options {
+    /// Frames the camera path takes, when walking one.
+    fn path_length(&self) -> Option<u32> {
+        self.path.map(|p| self.path_frames.unwrap_or(p.frames()))
+    }
+}
+
 fn parse(args: &[String]) -> Result<Options, String> {
     let mut o = Options {
         ecosystem: "forests/default.ecosystem.ron".into(),
@@ -490,7 +497,7 @@ fn follow_path(
         return;
     };
     let size = terrain.terrain.size();
-    let frames = options.path_frames.unwrap_or(path.frames()).max(2);
+    let frames = options.path_length().unwrap_or(path.frames()).max(2);
     let measured = run.frame.saturating_sub(options.warmup);
     let t = measured as f32 / (frames - 1) as f32;
     let (at, heading) = path_pose(path, t, size);
@@ -530,9 +537,7 @@ fn measure(
         return;
     }
     let measured = index - options.warmup;
-    let limit = options.frames.or(options
-        .path
-        .map(|p| options.path_frames.unwrap_or(p.frames())));
+    let limit = options.frames.or(options.path_length());
     if let Some((file, k)) = &options.screenshot
         && measured == *k
     {

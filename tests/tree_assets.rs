@@ -5,7 +5,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use bevy::asset::{AssetPlugin, LoadState};
+use bevy::asset::LoadState;
 use bevy::prelude::*;
 use bevy_sherwood::tree::*;
 
@@ -23,35 +23,6 @@ fn asset_dir(name: &str, files: &[(&str, &[u8])]) -> PathBuf {
         std::fs::write(path, bytes).unwrap();
     }
     dir
-}
-
-fn app(dir: &std::path::Path) -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin {
-            file_path: dir.to_string_lossy().into_owned(),
-            ..Default::default()
-        },
-        TreePlugin,
-    ));
-    app
-}
-
-/// Updates until the asset has loaded or failed (bounded).
-fn settle(app: &mut App, handle: &Handle<TreeModel>) -> LoadState {
-    for _ in 0..2000 {
-        app.update();
-        let state = app
-            .world()
-            .resource::<AssetServer>()
-            .load_state(handle.id());
-        if matches!(state, LoadState::Loaded | LoadState::Failed(_)) {
-            return state;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
-    panic!("asset neither loaded nor failed");
 }
 
 #[test]
@@ -76,7 +47,7 @@ fn species_saved_and_broken_files_load_through_the_asset_server() {
             ),
         ],
     );
-    let mut app = app(&dir);
+    let mut app = common::tree_app(&dir);
     let server = app.world().resource::<AssetServer>().clone();
     let handles = [
         server.load::<TreeModel>("slender.species.ron"),
@@ -84,7 +55,10 @@ fn species_saved_and_broken_files_load_through_the_asset_server() {
         server.load::<TreeModel>("slender.tree.bin"),
     ];
     for handle in &handles {
-        assert!(matches!(settle(&mut app, handle), LoadState::Loaded));
+        assert!(matches!(
+            common::settle(&mut app, handle),
+            LoadState::Loaded
+        ));
         let loaded = app
             .world()
             .resource::<Assets<TreeModel>>()
@@ -93,7 +67,7 @@ fn species_saved_and_broken_files_load_through_the_asset_server() {
         assert_eq!(loaded, &model);
     }
     let broken = server.load::<TreeModel>("broken.species.ron");
-    let LoadState::Failed(error) = settle(&mut app, &broken) else {
+    let LoadState::Failed(error) = common::settle(&mut app, &broken) else {
         panic!("a malformed species file must fail to load");
     };
     let message = error.to_string();

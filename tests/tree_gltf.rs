@@ -2,6 +2,8 @@
 //! byte, imported and analysed.
 #![cfg(feature = "gltf")]
 
+mod common;
+
 use std::collections::HashMap;
 
 use bevy::math::Vec3;
@@ -174,29 +176,17 @@ fn broken_files_are_refused() {
 
 #[test]
 fn tree_glb_files_load_through_the_asset_server() {
-    use bevy::asset::{AssetPlugin, LoadState};
+    use bevy::asset::LoadState;
     use bevy::prelude::*;
 
     let dir = std::env::temp_dir().join(format!("sherwood-gltf-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("oak.tree.glb"), glb(Vec3::ZERO, "Leaves")).unwrap();
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin {
-            file_path: dir.to_string_lossy().into_owned(),
-            ..Default::default()
-        },
-        TreePlugin,
-    ));
+    let mut app = common::tree_app(&dir);
     let handle: Handle<TreeModel> = app.world().resource::<AssetServer>().load("oak.tree.glb");
-    for _ in 0..2000 {
-        app.update();
-        match app.world().resource::<AssetServer>().load_state(&handle) {
-            LoadState::Loaded => break,
-            LoadState::Failed(e) => panic!("{e}"),
-            _ => std::thread::sleep(std::time::Duration::from_millis(2)),
-        }
+    match common::settle(&mut app, &handle) {
+        LoadState::Loaded => {}
+        state => panic!("{state:?}"),
     }
     let model = app
         .world()

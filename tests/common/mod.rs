@@ -4,7 +4,7 @@
     reason = "each test binary includes this module and uses a different part of it"
 )]
 
-use bevy::asset::AssetPlugin;
+use bevy::asset::{AssetPlugin, LoadState};
 use bevy::prelude::*;
 use bevy_sherwood::prelude::*;
 
@@ -35,4 +35,34 @@ pub fn headless_app() -> App {
         SherwoodPlugins,
     ));
     app
+}
+
+/// A headless app that loads tree models from `dir`.
+pub fn tree_app(dir: &std::path::Path) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            ..Default::default()
+        },
+        TreePlugin,
+    ));
+    app
+}
+
+/// Updates until the asset has loaded or failed (bounded).
+pub fn settle(app: &mut App, handle: &Handle<TreeModel>) -> LoadState {
+    for _ in 0..2000 {
+        app.update();
+        let state = app
+            .world()
+            .resource::<AssetServer>()
+            .load_state(handle.id());
+        if matches!(state, LoadState::Loaded | LoadState::Failed(_)) {
+            return state;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("asset neither loaded nor failed");
 }
