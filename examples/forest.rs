@@ -4,6 +4,7 @@
 //! ```sh
 //! cargo run --release --example forest                       # fly around (WASD + mouse)
 //! cargo run --release --example forest -- --path linear --frames 300 --summary
+//! cargo run --release --example forest -- --calibrate     # measure this machine's costs
 //! cargo run --release --example forest -- --help
 //! ```
 //!
@@ -25,8 +26,11 @@ use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestTerrain};
-use bevy_sherwood::lod::{LodCostModel, StrategyKind};
+use bevy_sherwood::lod::{CalibrationChoice, LodCostModel, StrategyKind};
 use bevy_sherwood::prelude::*;
+use bevy_sherwood::render::{
+    CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
+};
 use bevy_sherwood::wind::WindSettings;
 
 const USAGE: &str = "\
@@ -45,6 +49,13 @@ usage: forest [OPTIONS]
   --value p8|p9|p10|p11
   --no-wind              no wind
   --no-correction        no online correction of the cost model
+  --calibration FILE|default
+                         predict with this calibration file, or the built-in default
+                         costs (default: the one in assets/calibration/ for this adapter)
+  --calibrate            measure this machine's rendering and logic costs over the scene
+                         and write a calibration, then exit
+  --out PATH             where --calibrate writes (default
+                         assets/calibration/<adapter>.calibration.ron)
   --width W --height H   window or image size (default 960x540)
   --record FILE.csv      one row per measured frame
   --summary              print one summary line at exit
@@ -83,6 +94,9 @@ struct Options {
     value: ValueFunction,
     wind: bool,
     correction: bool,
+    calibration: CalibrationChoice,
+    calibrate: bool,
+    out: Option<String>,
     width: u32,
     height: u32,
     record: Option<String>,
@@ -113,6 +127,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
         value: ValueFunction::P11,
         wind: true,
         correction: true,
+        calibration: CalibrationChoice::Adapter,
+        calibrate: false,
+        out: None,
         width: 960,
         height: 540,
         record: None,
@@ -175,6 +192,15 @@ fn parse(args: &[String]) -> Result<Options, String> {
             }
             "--no-wind" => o.wind = false,
             "--no-correction" => o.correction = false,
+            "--calibration" => {
+                o.calibration = match it.next().map(String::as_str) {
+                    Some("default") => CalibrationChoice::Keep,
+                    Some(file) => CalibrationChoice::File(file.to_owned()),
+                    None => return Err("--calibration needs a file or `default`".into()),
+                };
+            }
+            "--calibrate" => o.calibrate = true,
+            "--out" => o.out = Some(it.next().ok_or("--out needs a path")?.clone()),
             "--width" => o.width = number("--width", it.next())?,
             "--height" => o.height = number("--height", it.next())?,
             "--record" => o.record = Some(it.next().ok_or("--record needs a file")?.clone()),
@@ -194,6 +220,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
     if o.width == 0 || o.height == 0 {
         return Err("--width and --height must be positive".into());
     }
+    if o.out.is_some() && !o.calibrate {
+        return Err("--out needs --calibrate".into());
+    }
     if o.path_frames == Some(0) {
         return Err("--path-frames must be positive".into());
     }
@@ -212,6 +241,9 @@ struct Row {
     frame: u32,
     diagnostics: LodDiagnostics,
     measured_ms: f32,
+    /// The forest pass's GPU time, when timestamps are available (arrives a frame or two
+    /// late).
+    pass_ms: Option<f64>,
 }
 
 /// The run's state.
@@ -274,6 +306,7 @@ fn main() -> AppExit {
         mode: options.mode,
         strategy: options.strategy,
         value: options.value,
+        calibration: options.calibration.clone(),
         ..default()
     })
     .insert_resource(WindSettings {
@@ -284,11 +317,32 @@ fn main() -> AppExit {
         online: options.correction,
         ..default()
     })
-    .insert_resource(options)
     .init_resource::<Run>()
-    .add_systems(Startup, setup)
-    .add_systems(Update, (keys, fly, follow_path, measure).chain())
-    .run()
+    .add_systems(Startup, setup);
+    if options.calibrate {
+        app.add_plugins(CalibrationRunPlugin)
+            .insert_resource(CalibrationSettings {
+                out: options.out.clone().map(Into::into),
+                ..default()
+            })
+            .add_systems(Update, exit_after_calibration.after(CalibrationRunSystems));
+    } else {
+        app.add_systems(Update, (keys, fly, follow_path, measure).chain());
+    }
+    app.insert_resource(options).run()
+}
+
+fn exit_after_calibration(progress: Res<CalibrationProgress>, mut exit: MessageWriter<AppExit>) {
+    match &progress.outcome {
+        Some(Ok(_)) => {
+            exit.write(AppExit::Success);
+        }
+        Some(Err(e)) => {
+            eprintln!("forest: calibration failed: {e}");
+            exit.write(AppExit::error());
+        }
+        None => {}
+    }
 }
 
 fn wait_for_gpu(device: Res<RenderDevice>) {
@@ -529,6 +583,7 @@ fn measure(
             frame,
             diagnostics,
             measured_ms,
+            pass_ms: stats.gpu_time_ms,
         });
     }
     let index = run.frame;
@@ -570,13 +625,13 @@ fn write_csv(file: &str, rows: &[Row]) -> std::io::Result<()> {
     let mut out = std::io::BufWriter::new(std::fs::File::create(file)?);
     writeln!(
         out,
-        "frame,visible,logic_ms,render_budget_ms,predicted_ms,measured_ms,triangles,lines,points,truncated,undrawn,target_ms"
+        "frame,visible,logic_ms,render_budget_ms,predicted_ms,measured_ms,triangles,lines,points,truncated,undrawn,target_ms,pass_ms"
     )?;
     for r in rows {
         let d = &r.diagnostics;
         writeln!(
             out,
-            "{},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{:.4}",
+            "{},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{:.4},{}",
             r.frame,
             d.visible_instances,
             d.logic_ms,
@@ -589,6 +644,7 @@ fn write_csv(file: &str, rows: &[Row]) -> std::io::Result<()> {
             d.truncated,
             d.undrawn,
             d.logic_ms + d.render_budget_ms,
+            r.pass_ms.map_or(String::new(), |t| format!("{t:.4}")),
         )?;
     }
     out.flush()

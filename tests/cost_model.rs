@@ -53,16 +53,165 @@ fn fitting_refuses_too_few_or_degenerate_samples() {
 
 #[test]
 fn logic_interpolation_at_between_and_outside_the_samples() {
-    let table = LogicTable::new(vec![(1000, 0.010), (0, 0.002), (500, 0.004), (500, 0.006)]);
+    let table = LogicTable::new(
+        100.0,
+        vec![(1000, 0.010), (0, 0.002), (500, 0.004), (500, 0.006)],
+    );
     assert_eq!(table.samples, vec![(0, 0.002), (500, 0.005), (1000, 0.010)]);
     assert!((table.time(500) - 0.005).abs() < 1e-7); // at
     assert!((table.time(250) - 0.0035).abs() < 1e-7); // between
     assert!((table.time(750) - 0.0075).abs() < 1e-7);
     assert!((table.time(1500) - 0.015).abs() < 1e-6); // beyond: nearest segment extended
-    let falling = LogicTable::new(vec![(100, 0.001), (200, 0.0005)]);
+    let falling = LogicTable::new(100.0, vec![(100, 0.001), (200, 0.0005)]);
     assert_eq!(falling.time(1000), 0.0); // never negative
     assert_eq!(LogicTable::default().time(10), 0.0);
-    assert_eq!(LogicTable::new(vec![(5, 0.003)]).time(99), 0.003);
+    assert_eq!(LogicTable::new(0.0, vec![(5, 0.003)]).time(99), 0.003);
+}
+
+#[test]
+fn logic_interpolation_across_targets() {
+    let tables = [
+        LogicTable::new(200.0, vec![(0, 0.004), (1000, 0.024)]),
+        LogicTable::new(50.0, vec![(0, 0.002), (1000, 0.012)]),
+    ];
+    // At a measured target, that table.
+    assert!((logic_time(&tables, 500, 50.0) - 0.007).abs() < 1e-7);
+    assert!((logic_time(&tables, 500, 200.0) - 0.014).abs() < 1e-7);
+    // Between targets, linear in the target.
+    assert!((logic_time(&tables, 500, 125.0) - 0.0105).abs() < 1e-6);
+    // Outside, the nearest table (no extrapolation in the target).
+    assert!((logic_time(&tables, 500, 10.0) - 0.007).abs() < 1e-7);
+    assert!((logic_time(&tables, 500, 1000.0) - 0.014).abs() < 1e-7);
+    assert_eq!(logic_time(&[], 500, 100.0), 0.0);
+}
+
+#[test]
+fn sized_fits_recover_each_size_and_interpolate_between() {
+    // Lines: pixels vary with projected length independently of the count.
+    let truth = |w: u32| LinearCost {
+        fixed: 1e-3,
+        per_primitive: (2.0 + 0.1 * w as f32) * 1e-6,
+        per_pixel: 5e-9,
+    };
+    let mut samples = Vec::new();
+    for w in [1, 4, 8] {
+        for n in [2_000.0, 10_000.0, 40_000.0] {
+            for length in [3.0, 30.0] {
+                let pixels = n * length * w as f32;
+                samples.push((
+                    w,
+                    CostSample {
+                        primitives: n,
+                        pixels,
+                        time: truth(w).time(n, pixels),
+                    },
+                ));
+            }
+        }
+    }
+    let costs = fit_sized_costs(&samples, 10).unwrap();
+    assert_eq!(costs.len(), 10);
+    let close = |a: f32, b: f32| ((a - b) / b).abs() < 1e-3;
+    for w in [1, 4, 8] {
+        let c = costs[w as usize - 1];
+        assert!(close(c.per_primitive, truth(w).per_primitive), "{w}: {c:?}");
+        assert!(close(c.per_pixel, truth(w).per_pixel), "{w}: {c:?}");
+    }
+    // Between measured widths: linear in the parts; beyond: the nearest.
+    let mid = (truth(4).per_primitive + truth(8).per_primitive) / 2.0;
+    assert!(close(costs[5].per_primitive, mid), "{:?}", costs[5]);
+    assert!(close(costs[9].per_primitive, truth(8).per_primitive));
+
+    // Points: pixels = count × size², so only fixed + per-primitive can be told apart.
+    let points: Vec<(u32, CostSample)> = [1_000.0, 5_000.0, 20_000.0]
+        .into_iter()
+        .map(|n| {
+            (
+                4,
+                CostSample {
+                    primitives: n,
+                    pixels: n * 16.0,
+                    time: 2e-4 + n * 3e-6,
+                },
+            )
+        })
+        .collect();
+    let point = fit_sized_costs(&points, 4).unwrap()[3];
+    assert!(
+        close(point.per_primitive, 3e-6) && point.per_pixel == 0.0,
+        "{point:?}"
+    );
+    assert!((point.fixed - 2e-4).abs() < 1e-6, "{point:?}");
+    // Noise that would make a part negative gives a smaller model, never a negative part.
+    let noisy: Vec<(u32, CostSample)> = [(100.0, 1e-3), (200.0, 0.9e-3), (300.0, 1.1e-3)]
+        .into_iter()
+        .map(|(n, t)| {
+            (
+                1,
+                CostSample {
+                    primitives: n,
+                    pixels: n,
+                    time: t,
+                },
+            )
+        })
+        .collect();
+    let c = fit_sized_costs(&noisy, 1).unwrap()[0];
+    assert!(c.fixed >= 0.0 && c.per_primitive >= 0.0 && c.per_pixel >= 0.0);
+    assert!(fit_sized_costs(&[], 4).is_err());
+}
+
+#[test]
+fn calibrations_are_found_by_adapter_and_bad_files_are_reported() {
+    let dir = std::env::temp_dir().join(format!("sherwood-calibrations-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let adapter = AdapterIdentity {
+        name: "llvmpipe (LLVM 15.0.6, 256 bits)".into(),
+        driver: "llvmpipe Mesa 22.3.6".into(),
+        cpu: true,
+    };
+    assert_eq!(
+        calibration_file_name(&adapter.name),
+        "llvmpipe-llvm-15-0-6-256-bits.calibration.ron"
+    );
+    assert!(find_calibration(&dir, &adapter).found.is_none());
+    let mut other_driver = Calibration {
+        adapter: adapter.name.clone(),
+        driver: "llvmpipe Mesa 21".into(),
+        ..Default::default()
+    };
+    other_driver.triangles.per_primitive = 9e-6;
+    let exact = Calibration {
+        adapter: adapter.name.clone(),
+        driver: adapter.driver.clone(),
+        ..Default::default()
+    };
+    let foreign = Calibration {
+        adapter: "NVIDIA GeForce".into(),
+        ..Default::default()
+    };
+    let write = |name: &str, c: &Calibration| {
+        std::fs::write(dir.join(name), c.to_ron_string().unwrap()).unwrap();
+    };
+    write("a-old.calibration.ron", &other_driver);
+    write("nvidia.calibration.ron", &foreign);
+    // Same adapter, other driver: used when nothing better exists.
+    let found = find_calibration(&dir, &adapter).found.unwrap();
+    assert_eq!(found.1, other_driver);
+    write("z-new.calibration.ron", &exact);
+    std::fs::write(dir.join("broken.calibration.ron"), "(adapter: 3)").unwrap();
+    std::fs::write(dir.join("notes.txt"), "not a calibration").unwrap();
+    let search = find_calibration(&dir, &adapter);
+    assert_eq!(search.found.unwrap().1, exact);
+    assert_eq!(search.refused.len(), 1);
+    assert!(search.refused[0].0.ends_with("broken.calibration.ron"));
+    assert!(
+        find_calibration(&dir.join("missing"), &adapter)
+            .found
+            .is_none()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

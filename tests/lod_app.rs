@@ -283,3 +283,43 @@ fn the_online_correction_learns_the_pass_time_and_the_overhead() {
     assert!((d.cost_factor - factor).abs() / factor < 0.5);
     assert_eq!(d.undrawn, 0);
 }
+
+#[test]
+fn the_budget_chooses_the_calibration_file_and_a_bad_one_falls_back() {
+    use bevy_sherwood::cost::Calibration;
+    use bevy_sherwood::lod::CalibrationChoice;
+    let mut app = common::headless_app();
+    let dir = std::env::temp_dir().join(format!("sherwood-lod-calibration-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut measured = Calibration {
+        adapter: "test adapter".into(),
+        ..Default::default()
+    };
+    measured.triangles.per_primitive = 7e-6;
+    let good = dir.join("good.calibration.ron");
+    std::fs::write(&good, measured.to_ron_string().unwrap()).unwrap();
+    let bad = dir.join("bad.calibration.ron");
+    std::fs::write(&bad, "(triangles: (fixed: -1))").unwrap();
+    let choose = |app: &mut App, choice: CalibrationChoice| {
+        app.world_mut().resource_mut::<FrameBudget>().calibration = choice;
+        app.update();
+        app.world().resource::<LodCostModel>().calibration.clone()
+    };
+    assert_eq!(
+        choose(
+            &mut app,
+            CalibrationChoice::File(good.display().to_string())
+        ),
+        measured
+    );
+    assert_eq!(
+        choose(&mut app, CalibrationChoice::File(bad.display().to_string())),
+        Calibration::default()
+    );
+    // Keep: what code put there stays.
+    app.world_mut().resource_mut::<LodCostModel>().calibration = measured.clone();
+    assert_eq!(choose(&mut app, CalibrationChoice::Keep), measured);
+    app.update();
+    assert_eq!(app.world().resource::<LodCostModel>().calibration, measured);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

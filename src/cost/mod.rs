@@ -60,7 +60,21 @@ pub enum FitError {
 
 /// Least-squares fit of a [`LinearCost`] to samples (normal equations, solved in `f64`).
 pub fn fit_linear_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
-    let rows: Vec<[f64; 4]> = samples
+    let rows = finite_rows(samples);
+    if rows.len() < 3 {
+        return Err(FitError::TooFewSamples(rows.len()));
+    }
+    let solution = least_squares(&rows, &[0, 1, 2]).ok_or(FitError::Degenerate)?;
+    Ok(LinearCost {
+        fixed: solution[0] as f32,
+        per_primitive: solution[1] as f32,
+        per_pixel: solution[2] as f32,
+    })
+}
+
+/// `[1, primitives, pixels, time]` per finite sample.
+fn finite_rows(samples: &[CostSample]) -> Vec<[f64; 4]> {
+    samples
         .iter()
         .filter(|s| s.primitives.is_finite() && s.pixels.is_finite() && s.time.is_finite())
         .map(|s| {
@@ -71,36 +85,138 @@ pub fn fit_linear_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
                 f64::from(s.time),
             ]
         })
-        .collect();
-    if rows.len() < 3 {
-        return Err(FitError::TooFewSamples(rows.len()));
+        .collect()
+}
+
+/// Fits a cost with no negative part (non-negative least squares, exactly: every subset
+/// of the three parts is fitted and the best fit whose parts are all non-negative wins).
+/// Noise makes an unmeasurably small part come out negative in the plain fit; dropping it
+/// is better than clamping it. When pixels follow the primitive count (points of one
+/// size) the per-pixel part cannot be told apart and is left at 0.
+pub fn fit_nonnegative_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
+    let rows = finite_rows(samples);
+    if rows.is_empty() {
+        return Err(FitError::TooFewSamples(0));
     }
-    // Scale columns so the normal matrix is well conditioned.
-    let mut scale = [1.0_f64; 3];
-    for c in 1..3 {
-        scale[c] = rows
+    let pixels_follow_primitives = {
+        let ratios: Vec<f64> = rows
             .iter()
-            .map(|r| r[c].abs())
-            .fold(0.0, f64::max)
-            .max(1e-30);
+            .filter(|r| r[1] > 0.0)
+            .map(|r| r[2] / r[1])
+            .collect();
+        let first = ratios.first().copied().unwrap_or(0.0);
+        ratios
+            .iter()
+            .all(|r| (r - first).abs() <= 1e-4 * first.abs().max(1e-12))
+    };
+    // Column subsets: {fixed, primitive, pixel} as bits 0, 1, 2.
+    let mut best: Option<(f64, LinearCost)> = None;
+    for subset in 1u8..8 {
+        if pixels_follow_primitives && subset & 4 != 0 {
+            continue;
+        }
+        let columns: Vec<usize> = (0..3).filter(|c| subset & (1 << c) != 0).collect();
+        let Some(solution) = least_squares(&rows, &columns) else {
+            continue;
+        };
+        if solution.iter().any(|x| *x < 0.0 || !x.is_finite()) {
+            continue;
+        }
+        let mut parts = [0.0_f64; 3];
+        for (&c, &x) in columns.iter().zip(&solution) {
+            parts[c] = x;
+        }
+        let error: f64 = rows
+            .iter()
+            .map(|r| (parts[0] + parts[1] * r[1] + parts[2] * r[2] - r[3]).powi(2))
+            .sum();
+        if best.as_ref().is_none_or(|b| error < b.0 * (1.0 - 1e-9)) {
+            best = Some((
+                error,
+                LinearCost {
+                    fixed: parts[0] as f32,
+                    per_primitive: parts[1] as f32,
+                    per_pixel: parts[2] as f32,
+                },
+            ));
+        }
     }
+    best.map(|b| b.1).ok_or(FitError::Degenerate)
+}
+
+/// Least squares of `rows[..][3]` on the given columns of `rows` (normal equations with
+/// scaled columns, solved in `f64`); `None` when singular or with too few rows.
+fn least_squares(rows: &[[f64; 4]], columns: &[usize]) -> Option<Vec<f64>> {
+    let k = columns.len();
+    if rows.len() < k {
+        return None;
+    }
+    let scale: Vec<f64> = columns
+        .iter()
+        .map(|&c| {
+            rows.iter()
+                .map(|r| r[c].abs())
+                .fold(0.0, f64::max)
+                .max(1e-30)
+        })
+        .collect();
     let mut a = [[0.0_f64; 3]; 3];
     let mut b = [0.0_f64; 3];
-    for r in &rows {
-        let x = [r[0] / scale[0], r[1] / scale[1], r[2] / scale[2]];
-        for i in 0..3 {
+    for r in rows {
+        let x: Vec<f64> = columns.iter().zip(&scale).map(|(&c, s)| r[c] / s).collect();
+        for i in 0..k {
             b[i] += x[i] * r[3];
-            for j in 0..3 {
+            for j in 0..k {
                 a[i][j] += x[i] * x[j];
             }
         }
     }
-    let solution = solve3(a, b).ok_or(FitError::Degenerate)?;
-    Ok(LinearCost {
-        fixed: (solution[0] / scale[0]) as f32,
-        per_primitive: (solution[1] / scale[1]) as f32,
-        per_pixel: (solution[2] / scale[2]) as f32,
-    })
+    // Pad to 3×3 with identity rows so one solver serves every size.
+    for i in k..3 {
+        a[i][i] = 1.0;
+    }
+    let solution = solve3(a, b)?;
+    Some((0..k).map(|i| solution[i] / scale[i]).collect())
+}
+
+/// Costs for sizes (line widths or point sizes) `1..=max_size` from samples measured at
+/// some sizes: each measured size is fitted on its own ([`fit_nonnegative_cost`]); a size
+/// between two measured ones gets the linear interpolation of their parts; a size
+/// outside the measured ones, the nearest.
+pub fn fit_sized_costs(
+    samples: &[(u32, CostSample)],
+    max_size: u32,
+) -> Result<Vec<LinearCost>, FitError> {
+    let mut sizes: Vec<u32> = samples.iter().map(|s| s.0).collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    let mut fitted: Vec<(u32, LinearCost)> = Vec::with_capacity(sizes.len());
+    for size in sizes {
+        let of_size: Vec<CostSample> = samples
+            .iter()
+            .filter(|s| s.0 == size)
+            .map(|s| s.1)
+            .collect();
+        fitted.push((size, fit_nonnegative_cost(&of_size)?));
+    }
+    if fitted.is_empty() {
+        return Err(FitError::TooFewSamples(0));
+    }
+    let lerp = |a: &LinearCost, b: &LinearCost, t: f32| LinearCost {
+        fixed: a.fixed + t * (b.fixed - a.fixed),
+        per_primitive: a.per_primitive + t * (b.per_primitive - a.per_primitive),
+        per_pixel: a.per_pixel + t * (b.per_pixel - a.per_pixel),
+    };
+    Ok((1..=max_size.max(1))
+        .map(|size| {
+            let i = fitted.partition_point(|f| f.0 <= size);
+            match (i.checked_sub(1).map(|j| &fitted[j]), fitted.get(i)) {
+                (Some(a), Some(b)) => lerp(&a.1, &b.1, (size - a.0) as f32 / (b.0 - a.0) as f32),
+                (Some(only), None) | (None, Some(only)) => only.1,
+                (None, None) => LinearCost::default(),
+            }
+        })
+        .collect())
 }
 
 /// Gaussian elimination with partial pivoting; `None` when singular.
@@ -130,10 +246,14 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     Some(x)
 }
 
-/// Logic time against the number of visible instances, from the logic benchmark;
-/// interpolated between the nearest samples at run time.
+/// Logic time against the number of visible instances at one target frame time, from
+/// the logic benchmark; interpolated between the nearest samples at run time.
 #[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct LogicTable {
+    /// The target frame time the samples were measured at, ms (the LOD's search, and so
+    /// the logic time, depends on it when LOD is view-dependent).
+    pub target_ms: f32,
     /// `(visible instances, seconds)`, sorted by visible count.
     pub samples: Vec<(u32, f32)>,
 }
@@ -141,7 +261,7 @@ pub struct LogicTable {
 impl LogicTable {
     /// A table from samples in any order (non-finite or negative times dropped; equal
     /// counts averaged).
-    pub fn new(mut samples: Vec<(u32, f32)>) -> Self {
+    pub fn new(target_ms: f32, mut samples: Vec<(u32, f32)>) -> Self {
         samples.retain(|s| s.1.is_finite() && s.1 >= 0.0);
         samples.sort_by_key(|s| s.0);
         let mut merged: Vec<(u32, f32, u32)> = Vec::new();
@@ -155,6 +275,7 @@ impl LogicTable {
             }
         }
         Self {
+            target_ms,
             samples: merged
                 .into_iter()
                 .map(|(n, t, k)| (n, t / k as f32))
@@ -180,6 +301,33 @@ impl LogicTable {
     }
 }
 
+/// Logic time with `visible` instances at target `target_ms` from tables measured at
+/// several targets: each table interpolated in the visible count, then linearly between
+/// the two tables whose targets bracket `target_ms` (the nearest table outside their
+/// range: logic time is not extrapolated in the target). No tables: 0.
+pub fn logic_time(tables: &[LogicTable], visible: u32, target_ms: f32) -> f32 {
+    let mut below: Option<&LogicTable> = None;
+    let mut above: Option<&LogicTable> = None;
+    for table in tables.iter().filter(|t| t.target_ms.is_finite()) {
+        if table.target_ms <= target_ms {
+            if below.is_none_or(|b| table.target_ms > b.target_ms) {
+                below = Some(table);
+            }
+        } else if above.is_none_or(|a| table.target_ms < a.target_ms) {
+            above = Some(table);
+        }
+    }
+    match (below, above) {
+        (Some(b), Some(a)) => {
+            let t = (target_ms - b.target_ms) / (a.target_ms - b.target_ms);
+            let (tb, ta) = (b.time(visible), a.time(visible));
+            tb + t.clamp(0.0, 1.0) * (ta - tb)
+        }
+        (Some(only), None) | (None, Some(only)) => only.time(visible),
+        (None, None) => 0.0,
+    }
+}
+
 /// A smoothed multiplicative correction of one family's predictions.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct OnlineCorrection {
@@ -198,6 +346,11 @@ impl Default for OnlineCorrection {
 }
 
 impl OnlineCorrection {
+    /// Forgets what was learned (factor 1), keeping the time constant.
+    pub fn reset(&mut self) {
+        self.log_factor = 0.0;
+    }
+
     /// The current factor to multiply calibrated predictions by.
     pub fn factor(&self) -> f32 {
         self.log_factor.exp()
@@ -237,8 +390,9 @@ pub struct Calibration {
     pub lines: Vec<LinearCost>,
     /// Points, per size in pixels from 1 (index 0) up.
     pub points: Vec<LinearCost>,
-    /// Logic time against visible instances.
-    pub logic: LogicTable,
+    /// Logic time against visible instances, one table per target frame time measured
+    /// (see [`logic_time`]).
+    pub logic: Vec<LogicTable>,
 }
 
 impl Default for Calibration {
@@ -270,7 +424,7 @@ impl Default for Calibration {
                     per_pixel: 1.2e-8,
                 })
                 .collect(),
-            logic: LogicTable::new(vec![(0, 2e-3), (1000, 6e-3)]),
+            logic: vec![LogicTable::new(100.0, vec![(0, 2e-3), (1000, 6e-3)])],
         }
     }
 }
@@ -304,6 +458,15 @@ impl Calibration {
         Ok(calibration)
     }
 
+    /// The fixed per-frame part of the pass: one draw of each family (the fixed part of
+    /// triangles, of the thinnest lines and of the smallest points), seconds.
+    pub fn fixed_time(&self) -> f32 {
+        (self.triangles.fixed
+            + self.lines.first().map_or(0.0, |c| c.fixed)
+            + self.points.first().map_or(0.0, |c| c.fixed))
+        .max(0.0)
+    }
+
     /// The calibration as RON.
     pub fn to_ron_string(&self) -> Result<String, ron::Error> {
         ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::default())
@@ -316,4 +479,89 @@ impl Calibration {
             Err(e) => (Self::default(), Some(e)),
         }
     }
+}
+
+/// The adapter the app renders with, as a calibration names it. The render plugin inserts
+/// it once the renderer is up; calibrations are matched against it.
+#[derive(bevy::prelude::Resource, Clone, Debug, PartialEq, Eq, Default)]
+pub struct AdapterIdentity {
+    /// wgpu's adapter name, e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`.
+    pub name: String,
+    /// wgpu's driver and driver info, e.g. `llvmpipe Mesa 22.3.6 (LLVM 15.0.6)`.
+    pub driver: String,
+    /// A software rasteriser (wgpu's `DeviceType::Cpu`, e.g. lavapipe). Its GPU timestamps
+    /// are taken when the draws are handed to the rasteriser threads, before the pixels
+    /// are filled, so they miss most of a pass's cost: the cost model and the calibration
+    /// then measure frame times instead.
+    pub cpu: bool,
+}
+
+/// The file name a calibration of `adapter` is saved under: the adapter name in lower
+/// case, runs of anything but letters and digits as one `-`, then `.calibration.ron`.
+pub fn calibration_file_name(adapter: &str) -> String {
+    let mut name = String::new();
+    for c in adapter.chars() {
+        if c.is_ascii_alphanumeric() {
+            name.push(c.to_ascii_lowercase());
+        } else if !name.ends_with('-') && !name.is_empty() {
+            name.push('-');
+        }
+    }
+    let name = name.trim_end_matches('-');
+    format!(
+        "{}.calibration.ron",
+        if name.is_empty() { "adapter" } else { name }
+    )
+}
+
+/// What [`find_calibration`] found in a directory.
+#[derive(Debug, Default)]
+pub struct CalibrationSearch {
+    /// The calibration for the adapter: one naming the same adapter and driver, else one
+    /// naming the same adapter.
+    pub found: Option<(std::path::PathBuf, Calibration)>,
+    /// Calibration files that could not be read or parsed, with the reason.
+    pub refused: Vec<(std::path::PathBuf, String)>,
+}
+
+/// Reads the calibration file at `path`.
+pub fn read_calibration(path: &std::path::Path) -> Result<Calibration, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    Calibration::from_ron_str(&text).map_err(|e| e.to_string())
+}
+
+/// Looks through the `*.calibration.ron` files of `dir` for one measured on `adapter`.
+/// A missing directory finds nothing; unreadable or malformed files are listed in
+/// [`CalibrationSearch::refused`] and skipped.
+pub fn find_calibration(dir: &std::path::Path, adapter: &AdapterIdentity) -> CalibrationSearch {
+    let mut search = CalibrationSearch::default();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return search;
+    };
+    let mut paths: Vec<std::path::PathBuf> = entries
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.ends_with(".calibration.ron"))
+        })
+        .collect();
+    paths.sort();
+    let mut same_adapter = None;
+    for path in paths {
+        match read_calibration(&path) {
+            Ok(c) if c.adapter == adapter.name && c.driver == adapter.driver => {
+                search.found = Some((path, c));
+                return search;
+            }
+            Ok(c) if c.adapter == adapter.name => {
+                same_adapter.get_or_insert((path, c));
+            }
+            Ok(_) => {}
+            Err(e) => search.refused.push((path, e)),
+        }
+    }
+    search.found = same_adapter;
+    search
 }

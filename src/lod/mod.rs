@@ -18,8 +18,11 @@
 //!   invisible instances get empty lists. In `Static` and `Unlimited` mode no time is
 //!   handed out and this stage does all the work.
 //!
-//! The cost model is the default [`Calibration`] until the calibration lands; its
-//! per-primitive costs predict, its logic table estimates `t_l`.
+//! The cost model ([`LodCostModel`]) predicts with a measured [`Calibration`]: the file
+//! in `assets/calibration/` naming the adapter (see [`CalibrationChoice`]; measure one
+//! with `cargo run --release --example forest -- --calibrate`), else a documented default.
+//! Its per-primitive costs predict the rendering, its logic tables estimate `t_l`, and
+//! both are corrected online (see [`crate::cost`]).
 
 mod diagnostics;
 pub mod select;
@@ -38,7 +41,7 @@ use crate::budget::{
     FunkhouserSequin, Level, ObjectDesc, PreviousSelection, RobinHood, TriangleBudget,
     ValueFunction, ValueInputs, ValueModel,
 };
-use crate::cost::{Calibration, OnlineCorrection};
+use crate::cost::{AdapterIdentity, Calibration, OnlineCorrection};
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList};
 use crate::ecosystem::TreeInstance;
@@ -105,6 +108,36 @@ pub struct FrameBudget {
     pub point_sizes: PixelRange,
     /// The frame-time model's machine constant C (P-7; default 1).
     pub machine_constant: f32,
+    /// Which calibration [`LodCostModel`] predicts with (default: the file in
+    /// `assets/calibration/` measured on this adapter).
+    pub calibration: CalibrationChoice,
+}
+
+/// The system that installs the chosen calibration (in `PreUpdate`).
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct LoadCalibration;
+
+/// Where the cost model's [`Calibration`] comes from. Changing it reloads.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
+pub enum CalibrationChoice {
+    /// The `*.calibration.ron` in `assets/calibration/` that names the adapter the app
+    /// renders with (and its driver, preferred); with none, [`Calibration::default`] and
+    /// one warning. Without the `render` feature there is no adapter: the default.
+    #[default]
+    Adapter,
+    /// This file (a path as given, relative to the working directory); when it cannot be
+    /// read or parsed, an error is logged once and the default is used.
+    File(String),
+    /// Whatever [`LodCostModel::calibration`] holds: set by code, never loaded.
+    Keep,
+}
+
+/// The directory searched for calibrations by [`CalibrationChoice::Adapter`]: the Bevy
+/// asset root's `assets/calibration`.
+pub fn calibration_dir() -> std::path::PathBuf {
+    bevy::asset::io::file::FileAssetReader::get_base_path()
+        .join("assets")
+        .join("calibration")
 }
 
 impl Default for FrameBudget {
@@ -119,6 +152,7 @@ impl Default for FrameBudget {
             line_widths: PixelRange::default(),
             point_sizes: PixelRange::default(),
             machine_constant: 1.0,
+            calibration: CalibrationChoice::Adapter,
         }
     }
 }
@@ -226,6 +260,7 @@ impl Plugin for LodPlugin {
             .init_resource::<MeasuredPassTime>()
             .init_resource::<LodDiagnostics>()
             .init_resource::<LodFrame>()
+            .add_systems(PreUpdate, load_calibration.in_set(LoadCalibration))
             .add_systems(
                 PostUpdate,
                 (
@@ -460,6 +495,7 @@ fn learn_costs(
     mut model: ResMut<LodCostModel>,
     frame: Res<LodFrame>,
     measured: Res<MeasuredPassTime>,
+    budget: Res<FrameBudget>,
     time: Res<Time<Real>>,
 ) {
     let dt = time.delta_secs();
@@ -486,7 +522,11 @@ fn learn_costs(
             });
         }
         None => {
-            let logic = model.calibration.logic.time(frame.trees.len() as u32);
+            let logic = crate::cost::logic_time(
+                &model.calibration.logic,
+                frame.trees.len() as u32,
+                budget.target_ms,
+            );
             model.render_correction.update(predicted, dt - logic, dt);
         }
     }
@@ -511,7 +551,11 @@ fn hand_out_time(
     let costs = PrimitiveCosts::from_calibration(calibration, factor);
     let logic = match (cost_model.online, cost_model.overhead) {
         (true, Some(overhead)) => overhead,
-        _ => calibration.logic.time(frame.trees.len() as u32),
+        _ => crate::cost::logic_time(
+            &calibration.logic,
+            frame.trees.len() as u32,
+            budget.target_ms,
+        ),
     };
     let target = (budget.target_ms.max(0.0)) / 1000.0;
     let model = FrameTimeModel {
@@ -529,11 +573,7 @@ fn hand_out_time(
     } else {
         frame.warned_target = false;
     }
-    let fixed = (calibration.triangles.fixed
-        + calibration.lines.first().map_or(0.0, |c| c.fixed)
-        + calibration.points.first().map_or(0.0, |c| c.fixed))
-    .max(0.0)
-        * factor;
+    let fixed = calibration.fixed_time() * factor;
     let rendering = (model.rendering_time(logic, target) - fixed.max(0.0)).max(0.0);
 
     // Per tree, a fresh list.
@@ -736,4 +776,63 @@ fn write_draw_lists(
         }
     }
     diagnostics.select_stage_ms = start.elapsed().as_secs_f32() * 1000.0;
+}
+
+/// Installs the calibration [`FrameBudget::calibration`] chooses, when the choice or the
+/// adapter changes; a new calibration restarts the online correction.
+fn load_calibration(
+    budget: Res<FrameBudget>,
+    adapter: Option<Res<AdapterIdentity>>,
+    mut model: ResMut<LodCostModel>,
+    mut loaded: Local<Option<(CalibrationChoice, Option<AdapterIdentity>)>>,
+) {
+    let key = (budget.calibration.clone(), adapter.as_deref().cloned());
+    if loaded.as_ref() == Some(&key) {
+        return;
+    }
+    *loaded = Some(key);
+    let chosen = match (&budget.calibration, adapter.as_deref()) {
+        (CalibrationChoice::Keep, _) | (CalibrationChoice::Adapter, None) => return,
+        (CalibrationChoice::File(path), _) => {
+            match crate::cost::read_calibration(std::path::Path::new(path)) {
+                Ok(c) => {
+                    info!("cost model: calibration {path} ({})", c.adapter);
+                    c
+                }
+                Err(e) => {
+                    error!("cost model: calibration {path}: {e}; using the default costs");
+                    Calibration::default()
+                }
+            }
+        }
+        (CalibrationChoice::Adapter, Some(adapter)) => {
+            let dir = calibration_dir();
+            let search = crate::cost::find_calibration(&dir, adapter);
+            for (path, e) in &search.refused {
+                error!("cost model: ignoring {}: {e}", path.display());
+            }
+            match search.found {
+                Some((path, c)) => {
+                    info!(
+                        "cost model: calibration {} for {}",
+                        path.display(),
+                        adapter.name
+                    );
+                    c
+                }
+                None => {
+                    warn!(
+                        "cost model: no calibration for adapter `{}` in {}; using the default \
+                         costs (measure one with `cargo run --release --example forest -- --calibrate`)",
+                        adapter.name,
+                        dir.display()
+                    );
+                    Calibration::default()
+                }
+            }
+        }
+    };
+    model.calibration = chosen;
+    model.render_correction.reset();
+    model.overhead = None;
 }

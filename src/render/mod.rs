@@ -17,6 +17,7 @@
 //! several cameras each view draws the same ranges, with its own line and point widths in
 //! its own pixels.
 
+mod calibrate;
 mod hud;
 
 use std::sync::{Arc, Mutex};
@@ -48,6 +49,9 @@ use bevy::render::{
 };
 use bytemuck::{Pod, Zeroable};
 
+pub use calibrate::{
+    CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
+};
 pub use hud::{ForestHud, ForestHudPlugin};
 
 use crate::culling::ForestCulling;
@@ -85,7 +89,9 @@ pub struct ForestRenderStats {
     /// Views the pass drew into.
     pub views: u32,
     /// GPU time of the pass in milliseconds, summed over views, when Bevy's
-    /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries.
+    /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries. On a
+    /// software rasteriser (lavapipe) it misses the pixel fill, which runs after the
+    /// timestamps on the rasteriser threads; the cost model ignores it there.
     pub gpu_time_ms: Option<f64>,
 }
 
@@ -103,7 +109,13 @@ impl Plugin for ForestRenderPlugin {
             .init_resource::<ForestRenderStats>()
             .init_resource::<TreeModelsVersion>()
             .insert_resource(mailbox.clone())
-            .add_systems(PreUpdate, receive_stats);
+            .add_systems(
+                PreUpdate,
+                (
+                    receive_stats,
+                    identify_adapter.before(crate::lod::LoadCalibration),
+                ),
+            );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
         };
@@ -131,11 +143,30 @@ impl Plugin for ForestRenderPlugin {
     }
 }
 
+/// Names the adapter for the cost model's calibration lookup, once it is known.
+fn identify_adapter(
+    mut commands: Commands,
+    info: Option<Res<bevy::render::renderer::RenderAdapterInfo>>,
+    identity: Option<Res<crate::cost::AdapterIdentity>>,
+) {
+    if let (Some(info), None) = (info, identity) {
+        commands.insert_resource(crate::cost::AdapterIdentity {
+            name: info.name.clone(),
+            driver: format!("{} {}", info.driver, info.driver_info)
+                .trim()
+                .to_owned(),
+            // wgpu's `DeviceType` is not re-exported by Bevy; its `Debug` name is stable.
+            cpu: format!("{:?}", info.device_type) == "Cpu",
+        });
+    }
+}
+
 fn receive_stats(
     mailbox: Res<StatsMailbox>,
     mut stats: ResMut<ForestRenderStats>,
     store: Option<Res<DiagnosticsStore>>,
     measured: Option<ResMut<crate::lod::MeasuredPassTime>>,
+    adapter: Option<Res<crate::cost::AdapterIdentity>>,
 ) {
     let Ok(latest) = mailbox.0.lock() else {
         return;
@@ -147,7 +178,10 @@ fn receive_stats(
         .as_deref()
         .and_then(|s| s.get(&GPU_TIME))
         .and_then(bevy::diagnostic::Diagnostic::value);
-    if let (Some(mut measured), Some(ms)) = (measured, latest.gpu_time_ms) {
+    // A software rasteriser's timestamps miss the fill: the cost model must not learn
+    // from them (see `AdapterIdentity::cpu`).
+    let trustworthy = adapter.is_some_and(|a| !a.cpu);
+    if let (Some(mut measured), Some(ms), true) = (measured, latest.gpu_time_ms, trustworthy) {
         measured.0 = Some(ms as f32);
     }
     stats.set_if_neq(latest);
