@@ -172,8 +172,8 @@ fn least_squares(rows: &[[f64; 4]], columns: &[usize]) -> Option<Vec<f64>> {
         }
     }
     // Pad to 3×3 with identity rows so one solver serves every size.
-    for i in k..3 {
-        a[i][i] = 1.0;
+    for (i, row) in a.iter_mut().enumerate().skip(k) {
+        row[i] = 1.0;
     }
     let solution = solve3(a, b)?;
     Some((0..k).map(|i| solution[i] / scale[i]).collect())

@@ -599,7 +599,7 @@ fn warm_up_list(model: &TreeModel) -> TreeDrawList {
             segments: 0..segments / 2,
             width: 3,
         }],
-        leaf_triangles: vec![0..leaves / 2],
+        leaf_triangles: core::iter::once(0..leaves / 2).collect(),
         leaf_points: vec![PointRun {
             leaves: leaves / 2..leaves,
             size: 3,
