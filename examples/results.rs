@@ -167,7 +167,7 @@ fn read_run(csv: &Path) -> Result<Option<Run>, String> {
 }
 
 /// The paper's own numbers (ALGORITHMS.md: paper table 2 = thesis 6.2/6.3, TC without LOD,
-/// 600 trees; thesis table 6.6, TCLOD with P-11, path not stated): (mode, path, t_f ms,
+/// 600 trees; thesis table 6.6, TCLOD with P-11, path not stated): (mode, path, `t_f` ms,
 /// mean ms, std ms, avg error).
 const PAPER: &[(&str, &str, f64, f64, Option<f64>, f64)] = &[
     ("tc", "linear", 12.5, 11.791, Some(0.606), 0.065),
