@@ -162,16 +162,7 @@ impl Bench {
     fn tree(&mut self, model: &Handle<TreeModel>, at: Vec3, list: Option<TreeDrawList>) {
         let mut e = self.app.world_mut().spawn((
             SceneEntity,
-            TreeInstance {
-                forest: Entity::PLACEHOLDER,
-                species: 0,
-                model: model.clone(),
-                index: 0,
-                scale: 1.0,
-                trunk_material: 0,
-                leaf_material: 0,
-                motion: 0,
-            },
+            TreeInstance::standalone(model.clone()),
             Transform::from_translation(at),
         ));
         if let Some(list) = list {

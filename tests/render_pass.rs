@@ -235,19 +235,7 @@ fn column() -> TreeModel {
 
 fn spawn_tree(world: &mut World, model: TreeModel, list: Option<TreeDrawList>) -> Entity {
     let handle = world.resource_mut::<Assets<TreeModel>>().add(model);
-    let mut entity = world.spawn((
-        TreeInstance {
-            forest: Entity::PLACEHOLDER,
-            species: 0,
-            model: handle,
-            index: 0,
-            scale: 1.0,
-            trunk_material: 0,
-            leaf_material: 0,
-            motion: 0,
-        },
-        Transform::IDENTITY,
-    ));
+    let mut entity = world.spawn((TreeInstance::standalone(handle), Transform::IDENTITY));
     if let Some(list) = list {
         entity.insert(list);
     }

@@ -410,20 +410,22 @@ impl Default for Calibration {
                 per_primitive: 1.1e-6,
                 per_pixel: 5e-9,
             },
-            lines: (1..=20)
-                .map(|_| LinearCost {
+            lines: vec![
+                LinearCost {
                     fixed: 2e-4,
                     per_primitive: 2.6e-6,
                     per_pixel: 5e-9,
-                })
-                .collect(),
-            points: (1..=20)
-                .map(|_| LinearCost {
+                };
+                20
+            ],
+            points: vec![
+                LinearCost {
                     fixed: 2e-4,
                     per_primitive: 1.5e-6,
                     per_pixel: 1.2e-8,
-                })
-                .collect(),
+                };
+                20
+            ],
             logic: vec![LogicTable::new(100.0, vec![(0, 2e-3), (1000, 6e-3)])],
         }
     }

@@ -102,6 +102,25 @@ pub struct TreeInstance {
     pub motion: u32,
 }
 
+impl TreeInstance {
+    /// A tree of `model` that belongs to no forest: culling and the LOD's selection never
+    /// see it, and the render pass draws the [`TreeDrawList`](crate::draw::TreeDrawList)
+    /// given with it (spawn one: the LOD plugin gives a list-less instance an empty list).
+    /// For benchmarks, previews and tests.
+    pub fn standalone(model: Handle<TreeModel>) -> Self {
+        Self {
+            forest: Entity::PLACEHOLDER,
+            species: 0,
+            model,
+            index: 0,
+            scale: 1.0,
+            trunk_material: 0,
+            leaf_material: 0,
+            motion: 0,
+        }
+    }
+}
+
 /// The terrain of a forest: query heights and normals with [`Terrain::height_at`] and
 /// [`Terrain::normal_at`].
 #[derive(Component, Clone, Debug)]

@@ -786,11 +786,13 @@ fn load_calibration(
     mut model: ResMut<LodCostModel>,
     mut loaded: Local<Option<(CalibrationChoice, Option<AdapterIdentity>)>>,
 ) {
-    let key = (budget.calibration.clone(), adapter.as_deref().cloned());
-    if loaded.as_ref() == Some(&key) {
+    // Compared in place: this runs every frame, and cloning the key would allocate.
+    if loaded.as_ref().is_some_and(|(choice, seen)| {
+        *choice == budget.calibration && seen.as_ref() == adapter.as_deref()
+    }) {
         return;
     }
-    *loaded = Some(key);
+    *loaded = Some((budget.calibration.clone(), adapter.as_deref().cloned()));
     let chosen = match (&budget.calibration, adapter.as_deref()) {
         (CalibrationChoice::Keep, _) | (CalibrationChoice::Adapter, None) => return,
         (CalibrationChoice::File(path), _) => {

@@ -2,7 +2,7 @@
 //! forest pass and over the user's own scene, and writes a `*.calibration.ron`
 //! (thesis §6.2).
 //!
-//! [`CalibrationRunPlugin`] takes over the first 3D camera for a few minutes:
+//! [`CalibrationRunPlugin`] takes over the first 3D camera while it runs:
 //!
 //! 1. **Rendering**: the camera looks at the empty sky; benchmark trees of the scene's
 //!    most complex model are spawned in front of it with draw lists of one primitive
@@ -10,7 +10,8 @@
 //!    at several total primitive counts and, for triangles and lines, two distances (so
 //!    covered pixels vary apart from the count). Each configuration's time is the median
 //!    pass time from GPU timestamps (Bevy's `RenderDiagnosticsPlugin`), or, without
-//!    timestamps, the median frame time less that of an empty frame. Pixels are the LOD's
+//!    timestamps or on a software rasteriser (whose timestamps miss the fill, see
+//!    [`AdapterIdentity::cpu`]), the median frame time less that of an empty frame. Pixels are the LOD's
 //!    own estimates ([`crate::lod::select`]), so the fitted per-pixel parts are in the
 //!    units the budget predicts with. Each family, and each width and size, is fitted
 //!    with [`fit_nonnegative_cost`]: points' pixels follow their count at one size, so
@@ -21,8 +22,9 @@
 //!    count rising from none to most of the forest), and back (falling) — at a few
 //!    targets in TCLOD mode. Each position's logic time is the median of the frame time
 //!    less the pass time: everything the budget must leave to the rest of the frame (app
-//!    logic, the Sherwood stages and their search, other rendering). Without timestamps it
-//!    is the main world's update time.
+//!    logic, the Sherwood stages and their search, other rendering). The pass time is the
+//!    GPU timestamps' where they are used for the rendering benchmark, else the pass as
+//!    the rendering costs just measured predict it.
 //!
 //! At the end the calibration is written (by default to
 //! `assets/calibration/<adapter>.calibration.ron`, where [`CalibrationChoice::Adapter`]
@@ -52,8 +54,8 @@ use crate::wind::WindSettings;
 
 use super::ForestRenderStats;
 
-/// What the calibration run measures. The defaults take about four minutes on a 2-core
-/// machine rendering with lavapipe.
+/// What the calibration run measures. The defaults took about 25 minutes on a 2-core
+/// machine rendering with lavapipe (137 configurations, frames of up to a second).
 #[derive(Resource, Clone, Debug, PartialEq)]
 pub struct CalibrationSettings {
     /// Where to write the calibration; `None`: `assets/calibration/` under the adapter's
@@ -110,8 +112,6 @@ impl Plugin for CalibrationRunPlugin {
         app.init_resource::<CalibrationSettings>()
             .init_resource::<CalibrationProgress>()
             .init_resource::<RunState>()
-            .add_systems(First, start_update_clock)
-            .add_systems(Last, stop_update_clock)
             .add_systems(
                 Update,
                 (run_calibration, show_progress)
@@ -186,7 +186,6 @@ impl Step {
 struct Measured {
     frame_ms: Vec<f32>,
     pass_ms: Vec<Option<f32>>,
-    update_ms: Vec<f32>,
     visible: Vec<u32>,
     /// The installed calibration's prediction of the pass, ms.
     predicted_pass_ms: Vec<f32>,
@@ -214,23 +213,11 @@ struct RunState {
     empty_frame_ms: f32,
     render_samples: Vec<(Family, u32, CostSample)>,
     logic_samples: Vec<(f32, u32, f32)>,
-    update_started: Option<Instant>,
-    last_update_ms: f32,
     step_started: Option<Instant>,
     /// Pass times from GPU timestamps (a hardware adapter that has them), else frame
     /// times less the empty frame's.
     use_timestamps: bool,
     finished: bool,
-}
-
-fn start_update_clock(mut state: ResMut<RunState>) {
-    state.update_started = Some(Instant::now());
-}
-
-fn stop_update_clock(mut state: ResMut<RunState>) {
-    if let Some(start) = state.update_started.take() {
-        state.last_update_ms = start.elapsed().as_secs_f32() * 1000.0;
-    }
 }
 
 /// The median of the finite values.
@@ -426,7 +413,6 @@ fn run_calibration(
         let m = &mut state.measured;
         m.frame_ms.push(time.delta_secs() * 1000.0);
         m.pass_ms.push(stats.gpu_time_ms.map(|t| t as f32));
-        m.update_ms.push(state.last_update_ms);
         m.visible.push(diagnostics.visible_instances);
         m.predicted_pass_ms
             .push(diagnostics.predicted_render_ms + cost_model.calibration.fixed_time() * 1000.0);
@@ -573,16 +559,7 @@ fn bench_tree(
 ) -> (CalibrationTree, TreeInstance, TreeDrawList, Transform) {
     (
         CalibrationTree,
-        TreeInstance {
-            forest: Entity::PLACEHOLDER,
-            species: 0,
-            model: model.clone(),
-            index: 0,
-            scale: 1.0,
-            trunk_material: 0,
-            leaf_material: 0,
-            motion: 0,
-        },
+        TreeInstance::standalone(model.clone()),
         list,
         Transform::from_translation(at),
     )
