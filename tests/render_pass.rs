@@ -22,7 +22,7 @@ use bevy::render::{RenderApp, RenderPlugin};
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
-use bevy_sherwood::ecosystem::TreeInstance;
+use bevy_sherwood::ecosystem::{EcosystemPlugin, TerrainMaterial, TreeInstance};
 use bevy_sherwood::render::ForestRenderPlugin;
 use bevy_sherwood::tree::{AnalysisOptions, MeshData, TreeModel, TreePlugin, analyze};
 use bevy_sherwood::{SherwoodCorePlugin, prelude::ForestRenderStats};
@@ -124,7 +124,12 @@ fn render_views(
             // The render world stays on this thread, where the test can inspect it.
             .disable::<PipelinedRenderingPlugin>(),
     )
-    .add_plugins((SherwoodCorePlugin, TreePlugin, ForestRenderPlugin));
+    .add_plugins((
+        SherwoodCorePlugin,
+        TreePlugin,
+        ForestRenderPlugin,
+        EcosystemPlugin,
+    ));
     while app.plugins_state() == PluginsState::Adding {
         bevy::tasks::tick_global_task_pools_on_main_thread();
     }
@@ -390,6 +395,41 @@ fn cube(world: &mut World, at: Vec3) {
         MeshMaterial3d(material),
         Transform::from_translation(at),
     ));
+}
+
+#[test]
+fn the_terrain_material_is_lambert_under_the_first_directional_light() {
+    let (ambient, diffuse) = (0.1, 0.5);
+    let (picture, _) = render(
+        "terrain_material",
+        Vec3::new(0.0, 4.0, 0.01),
+        Vec3::ZERO,
+        move |world| {
+            let mesh = world
+                .resource_mut::<Assets<Mesh>>()
+                .add(Plane3d::default().mesh().size(20.0, 20.0));
+            let material = world
+                .resource_mut::<Assets<TerrainMaterial>>()
+                .add(TerrainMaterial {
+                    ambient: LinearRgba::gray(ambient),
+                    diffuse: LinearRgba::gray(diffuse),
+                });
+            world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
+        },
+    );
+    // The light sits at (1, 3, 2) looking at the origin; the plane's normal is +Y.
+    let lambert = 3.0 / 14.0f32.sqrt();
+    let expected = Color::LinearRgba(LinearRgba::gray(ambient + diffuse * lambert)).to_srgba();
+    let expected = (expected.red * 255.0).round() as i32;
+    for (x, y) in [(SIZE / 2, SIZE / 2), (10, 10), (SIZE - 10, SIZE - 20)] {
+        let p = picture.pixel(x, y);
+        for c in &p[..3] {
+            assert!(
+                (i32::from(*c) - expected).abs() <= 2,
+                "pixel ({x}, {y}) is {p:?}, expected grey {expected}"
+            );
+        }
+    }
 }
 
 #[test]

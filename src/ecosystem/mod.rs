@@ -6,6 +6,8 @@ mod desc;
 mod placement;
 mod plugin;
 mod terrain;
+#[cfg(feature = "render")]
+mod terrain_material;
 
 pub use desc::{
     EcosystemDesc, EcosystemError, EcosystemLayout, InstanceDesc, InstanceLayout, MaterialDesc,
@@ -17,3 +19,5 @@ pub use plugin::{
     ForestTerrain, TreeInstance,
 };
 pub use terrain::{FaultsDesc, Terrain, TerrainDesc, TerrainError};
+#[cfg(feature = "render")]
+pub use terrain_material::TerrainMaterial;

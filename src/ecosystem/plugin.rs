@@ -140,6 +140,8 @@ impl Plugin for EcosystemPlugin {
         app.init_asset::<Ecosystem>()
             .register_asset_loader(EcosystemLoader)
             .add_systems(Update, spawn_forests);
+        #[cfg(feature = "render")]
+        super::terrain_material::add_terrain_material(app);
     }
 }
 
@@ -151,7 +153,9 @@ fn spawn_forests(
     server: Res<AssetServer>,
     // Absent in headless apps: the terrain then gets no mesh.
     #[cfg(feature = "render")] mut meshes: Option<ResMut<Assets<Mesh>>>,
-    #[cfg(feature = "render")] mut materials: Option<ResMut<Assets<StandardMaterial>>>,
+    #[cfg(feature = "render")] mut materials: Option<ResMut<Assets<super::TerrainMaterial>>>,
+    // Only when SherwoodPlugins came before Bevy's PbrPlugin (see `TerrainMaterial`).
+    #[cfg(feature = "render")] mut standard_materials: Option<ResMut<Assets<StandardMaterial>>>,
 ) {
     let changed: Vec<AssetId<Ecosystem>> = events
         .read()
@@ -240,25 +244,34 @@ fn spawn_forests(
             ))
             .id();
         #[cfg(feature = "render")]
-        if let (Some(meshes), Some(materials)) = (meshes.as_mut(), materials.as_mut()) {
+        if let Some(meshes) = meshes.as_mut() {
             let t = &layout.terrain;
-            let mesh = crate::tree::triangle_mesh(
+            let mesh = meshes.add(crate::tree::triangle_mesh(
                 &t.mesh_positions(),
                 &t.mesh_normals(),
                 &t.mesh_indices(),
-            );
-            let ground = ecosystem
+            ));
+            let material = ecosystem
                 .materials
                 .get(&ecosystem.terrain_material)
-                .map_or([0.3, 0.4, 0.2], |m| m.diffuse);
-            commands.entity(terrain).insert((
-                Mesh3d(meshes.add(mesh)),
-                MeshMaterial3d(materials.add(StandardMaterial {
-                    base_color: Color::linear_rgb(ground[0], ground[1], ground[2]),
-                    perceptual_roughness: 0.95,
-                    ..default()
-                })),
-            ));
+                .map_or_else(
+                    super::TerrainMaterial::default,
+                    super::TerrainMaterial::from_desc,
+                );
+            if let Some(materials) = materials.as_mut() {
+                commands
+                    .entity(terrain)
+                    .insert((Mesh3d(mesh), MeshMaterial3d(materials.add(material))));
+            } else if let Some(materials) = standard_materials.as_mut() {
+                commands.entity(terrain).insert((
+                    Mesh3d(mesh),
+                    MeshMaterial3d(materials.add(StandardMaterial {
+                        base_color: material.diffuse.into(),
+                        perceptual_roughness: 0.95,
+                        ..default()
+                    })),
+                ));
+            }
         }
         state.terrain = Some(terrain);
     }
