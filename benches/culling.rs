@@ -71,6 +71,7 @@ fn culling(c: &mut Criterion) {
             Vec3::Y,
         );
     let planes = FrustumPlanes::from_clip_from_world(view);
+    let none = MovedShapes::default();
     let area = Bounds {
         min: Vec3::ZERO,
         max: Vec3::new(SIZE, 10.0, SIZE),
@@ -79,11 +80,11 @@ fn culling(c: &mut Criterion) {
     let mut group = c.benchmark_group("cull_100k");
     group.measurement_time(Duration::from_secs(3));
     group.bench_function("brute_force", |b| {
-        b.iter(|| cull_brute_force(&planes, &instances, &shapes, black_box(&mut result)));
+        b.iter(|| cull_brute_force(&planes, &instances, &shapes, &none, black_box(&mut result)));
     });
     for depth in [3, 4, 5, 6, 7] {
         let mut hierarchy = BoxHierarchy::build(depth, &area, &instances, &shapes);
-        hierarchy.cull(&planes, &instances, &shapes, &mut result);
+        hierarchy.cull(&planes, &instances, &shapes, &none, &mut result);
         let visible = result
             .visibility
             .iter()
@@ -91,7 +92,7 @@ fn culling(c: &mut Criterion) {
             .count();
         println!("depth {depth}: {visible} of 100000 instances visible");
         group.bench_with_input(BenchmarkId::new("hierarchy", depth), &depth, |b, _| {
-            b.iter(|| hierarchy.cull(&planes, &instances, &shapes, black_box(&mut result)));
+            b.iter(|| hierarchy.cull(&planes, &instances, &shapes, &none, black_box(&mut result)));
         });
     }
     group.finish();

@@ -9,8 +9,6 @@
 use std::time::Duration;
 
 use bevy::prelude::*;
-use bevy_sherwood::culling::FrustumPlanes;
-use bevy_sherwood::ecosystem::EcosystemDesc;
 use bevy_sherwood::prelude::*;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 
@@ -18,48 +16,15 @@ use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 mod common;
 
 fn forest_app(trees: u32) -> App {
-    let mut app = common::headless_app();
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/forests/default.ecosystem.ron"
-    ))
-    .unwrap();
-    let mut desc = EcosystemDesc::from_ron_str(&text).unwrap();
-    let species = desc.species.len() as u32;
-    for s in &mut desc.species {
-        s.count = trees / species;
-    }
-    // Same density as the default forest.
-    desc.terrain.size *= (trees as f32 / 600.0).sqrt();
-    desc.culling_depth = 6;
-    let size = desc.terrain.size;
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<Ecosystem>>()
-        .add(Ecosystem(desc));
-    app.world_mut().spawn(Forest(handle));
+    let (mut app, size) = common::forest_of(trees);
     // High above the centre, looking down: every tree in view.
-    let eye = Vec3::new(size / 2.0, size * 0.9, size / 2.0 + 1.0);
-    let target = Vec3::new(size / 2.0, 0.0, size / 2.0);
-    let fov = 1.2;
-    let clip_from_world = Mat4::perspective_infinite_reverse_rh(fov, 1.0, 0.1)
-        * Mat4::look_at_rh(eye, target, Vec3::Y);
-    app.world_mut().spawn((
-        CullView(FrustumPlanes::from_clip_from_world(clip_from_world)),
-        LodView {
-            position: eye,
-            forward: (target - eye).normalize(),
-            focal_pixels: 540.0 / (2.0 * (fov * 0.5).tan()),
-        },
-    ));
-    for _ in 0..20_000 {
-        app.update();
-        if app.world().resource::<LodDiagnostics>().visible_instances > 0 {
-            return app;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    panic!("the forest never loaded");
+    common::look_from(
+        &mut app,
+        Vec3::new(size / 2.0, size * 0.9, size / 2.0 + 1.0),
+        Vec3::new(size / 2.0, 0.0, size / 2.0),
+    );
+    common::until_visible(&mut app);
+    app
 }
 
 fn stages(c: &mut Criterion) {

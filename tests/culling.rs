@@ -95,11 +95,26 @@ proptest! {
         let target = Vec3::new(target.0 as f32 + 0.5, target.1 as f32, target.2 as f32 + 0.5);
         let planes = view(eye, target, (fov as f32).to_radians(), far.map(|f| f as f32));
         let mut hierarchy = BoxHierarchy::build(depth, &area(400.0), &instances, &shapes);
+        // Every fifth instance swayed: its groups moved within its box at rest (where the
+        // hierarchy's boxes still hold them, so both must agree).
+        let mut moved = MovedShapes::default();
+        for i in (0..instances.len()).step_by(5) {
+            let rest = &shapes[instances[i].shape as usize];
+            let shape = moved.shape_mut(i);
+            *shape = rest.clone();
+            for (g, sphere) in shape.groups.iter_mut().enumerate() {
+                let lean = Vec3::new(0.3 * (g as f32 + seed as f32).sin(), 0.0, 0.3);
+                sphere.center = (sphere.center + lean).clamp(
+                    rest.bounds.min + sphere.radius,
+                    rest.bounds.max - sphere.radius,
+                );
+            }
+        }
         let (mut fast, mut slow) = (CullResult::default(), CullResult::default());
-        hierarchy.cull(&planes, &instances, &shapes, &mut fast);
-        cull_brute_force(&planes, &instances, &shapes, &mut slow);
+        hierarchy.cull(&planes, &instances, &shapes, &moved, &mut fast);
+        cull_brute_force(&planes, &instances, &shapes, &moved, &mut slow);
         for i in 0..instances.len() {
-            let shape = &shapes[instances[i].shape as usize];
+            let shape = moved.get(i).unwrap_or(&shapes[instances[i].shape as usize]);
             prop_assert_eq!(fast.trunk_visible(i), slow.trunk_visible(i), "instance {}", i);
             for g in 0..shape.groups.len() {
                 prop_assert_eq!(fast.group_visible(i, g), slow.group_visible(i, g));
@@ -125,7 +140,13 @@ fn looking_away_sees_nothing_and_from_above_sees_everything() {
         1.0,
         None,
     );
-    hierarchy.cull(&away, &instances, &shapes, &mut result);
+    hierarchy.cull(
+        &away,
+        &instances,
+        &shapes,
+        &MovedShapes::default(),
+        &mut result,
+    );
     assert!(
         result
             .visibility
@@ -138,7 +159,13 @@ fn looking_away_sees_nothing_and_from_above_sees_everything() {
         1.2,
         None,
     );
-    hierarchy.cull(&above, &instances, &shapes, &mut result);
+    hierarchy.cull(
+        &above,
+        &instances,
+        &shapes,
+        &MovedShapes::default(),
+        &mut result,
+    );
     assert!(
         result
             .visibility
@@ -162,4 +189,56 @@ fn empty_cells_are_invalid_and_skipped() {
     );
     let total: u32 = hierarchy.leaf_ranges().map(|r| r.end - r.start).sum();
     assert_eq!(total, 50);
+}
+
+#[test]
+fn a_swayed_tree_is_tested_where_it_moved() {
+    // Looking along +Z from the origin; a tree on the left edge of the view whose single
+    // leaf group lies outside at rest and leans into view in the wind.
+    let planes = view(Vec3::ZERO, Vec3::new(0.0, 0.0, 10.0), 1.0, None);
+    let rest = CullShape {
+        bounds: Bounds {
+            min: Vec3::new(-2.0, -1.0, -2.0),
+            max: Vec3::new(4.0, 1.0, 2.0),
+        },
+        trunk: Bounds {
+            min: Vec3::new(-0.2, -1.0, -0.2),
+            max: Vec3::new(0.2, 1.0, 0.2),
+        },
+        groups: vec![BoundingSphere {
+            center: Vec3::new(3.0, 0.0, 0.0),
+            radius: 0.5,
+        }],
+    };
+    // x = +z·tan(0.5·fov·aspect) is the left edge at depth z: put the trunk just inside.
+    let edge = 10.0 * (0.5_f32 * 1.0).tan() * 16.0 / 9.0;
+    let instances = [CullInstance {
+        transform: Affine3A::from_translation(Vec3::new(edge - 0.5, 0.0, 10.0)),
+        shape: 0,
+    }];
+    let shapes = [rest.clone()];
+    let mut hierarchy = BoxHierarchy::build(0, &area(20.0), &instances, &shapes);
+    let mut result = CullResult::default();
+    hierarchy.cull(
+        &planes,
+        &instances,
+        &shapes,
+        &MovedShapes::default(),
+        &mut result,
+    );
+    assert!(result.trunk_visible(0));
+    assert!(!result.group_visible(0, 0), "the group is outside at rest");
+
+    let mut moved = MovedShapes::default();
+    let shape = moved.shape_mut(0);
+    *shape = rest;
+    shape.groups[0].center = Vec3::new(-1.0, 0.0, 0.0);
+    hierarchy.cull(&planes, &instances, &shapes, &moved, &mut result);
+    assert!(result.group_visible(0, 0), "the swayed group is in view");
+    let mut reference = CullResult::default();
+    cull_brute_force(&planes, &instances, &shapes, &moved, &mut reference);
+    assert_eq!(result, reference);
+    assert_eq!(moved.len(), 1);
+    moved.clear();
+    assert!(moved.is_empty() && moved.get(0).is_none());
 }

@@ -4,7 +4,7 @@
 mod common;
 
 use bevy::prelude::*;
-use bevy_sherwood::culling::{CullResult, FrustumPlanes, cull_brute_force};
+use bevy_sherwood::culling::{CullResult, FrustumPlanes, MovedShapes, cull_brute_force};
 use bevy_sherwood::ecosystem::{ForestState, ForestTerrain};
 use bevy_sherwood::prelude::*;
 
@@ -52,7 +52,13 @@ fn forest_spawns_culls_and_respawns() {
     let culling = app.world().resource::<ForestCulling>();
     assert_eq!(culling.result.visibility.len(), 600);
     let mut reference = CullResult::default();
-    cull_brute_force(&planes, &culling.instances, &culling.shapes, &mut reference);
+    cull_brute_force(
+        &planes,
+        &culling.instances,
+        &culling.shapes,
+        &MovedShapes::default(),
+        &mut reference,
+    );
     let visible = |r: &CullResult| (0..600).filter(|&i| r.trunk_visible(i)).count();
     assert_eq!(visible(&culling.result), visible(&reference));
     assert!(
@@ -137,7 +143,7 @@ fn a_species_that_fails_to_load_does_not_hold_the_forest_back() {
 #[test]
 fn wind_moves_visible_trees_only_and_can_be_turned_off() {
     use bevy::time::TimeUpdateStrategy;
-    use bevy_sherwood::wind::{RingOffsetTable, WindSettings};
+    use bevy_sherwood::wind::{RingOffsetTable, WindSettings, WindStats};
 
     let mut app = app();
     app.insert_resource(TimeUpdateStrategy::ManualDuration(
@@ -178,10 +184,16 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
         assert!(!moves(i), "invisible instance {i} moved");
     }
     assert!((0..600).any(moves));
+    // Every moved instance is culled with its moved shape.
+    assert_eq!(culling.moved.len(), table.moved as usize);
+    let stats = *app.world().resource::<WindStats>();
+    assert_eq!(stats.moved, table.moved);
+    assert_eq!(stats.moved + stats.skipped, stats.candidates);
 
     app.world_mut().resource_mut::<WindSettings>().enabled = false;
     app.update();
     let table = app.world().resource::<RingOffsetTable>();
     assert_eq!(table.moved, 0);
     assert!(table.offsets.iter().all(|o| *o == Vec3::ZERO));
+    assert!(app.world().resource::<ForestCulling>().moved.is_empty());
 }

@@ -178,16 +178,27 @@ fn moved_bounds_follow_the_rings() {
         0.0,
         &mut offsets,
     );
-    let (trunk, groups) = moved_bounds(&m, &offsets);
-    for (ring, offset) in m.rings.iter().zip(&offsets) {
-        assert!(trunk.contains(ring.center + *offset, 1e-4));
+    let mut shape = bevy_sherwood::culling::CullShape::from(&m);
+    moved_bounds(&m, &offsets, &mut shape);
+    // Every vertex where the GPU puts it: trunk vertices with their ring, leaf vertices
+    // with their group's ring.
+    for (p, &ring) in m.trunk_positions.iter().zip(&m.trunk_vertex_ring) {
+        let moved = *p + offsets[ring as usize];
+        assert!(shape.trunk.contains(moved, 1e-3), "trunk vertex {moved}");
+        assert!(shape.bounds.contains(moved, 1e-3));
     }
-    for (g, moved) in m.leaf_groups.iter().zip(&groups) {
-        assert_eq!(moved.center, g.bounds.center + offsets[g.ring as usize]);
-        assert_eq!(moved.radius, g.bounds.radius);
+    for (p, &leaf) in m.leaf_positions.iter().zip(&m.leaf_vertex_leaf) {
+        let g = m.leaves[leaf as usize].group as usize;
+        let moved = *p + offsets[m.leaf_groups[g].ring as usize];
+        let sphere = shape.groups[g];
+        assert!(
+            sphere.center.distance(moved) <= sphere.radius * 1.001 + 1e-4,
+            "leaf vertex {moved} outside its group's moved sphere"
+        );
+        assert!(shape.bounds.contains(moved, 1e-3));
     }
     assert!(
-        trunk.max.x > m.trunk_bounds.max.x,
+        shape.trunk.max.x > m.trunk_bounds.max.x,
         "the crown leans with the wind"
     );
 }

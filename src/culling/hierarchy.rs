@@ -95,6 +95,65 @@ impl From<&TreeModel> for CullShape {
     }
 }
 
+/// The shapes of the instances that moved this frame (wind), in their own space: they
+/// replace their species' [`CullShape`] in the per-instance tests of partially visible
+/// leaves, so a bent tree is culled where it is drawn. Storage is reused across frames.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MovedShapes {
+    /// Per instance: index into `shapes`, or `NOT_MOVED`.
+    slot: Vec<u32>,
+    shapes: Vec<CullShape>,
+    used: usize,
+}
+
+const NOT_MOVED: u32 = u32::MAX;
+
+impl MovedShapes {
+    /// Forgets every moved shape (keeps the storage).
+    pub fn clear(&mut self) {
+        self.slot.clear();
+        self.used = 0;
+    }
+
+    /// Instances with a moved shape.
+    pub fn len(&self) -> usize {
+        self.used
+    }
+
+    /// Whether no instance moved.
+    pub fn is_empty(&self) -> bool {
+        self.used == 0
+    }
+
+    /// The moved shape of `instance`, if it has one.
+    pub fn get(&self, instance: usize) -> Option<&CullShape> {
+        match self.slot.get(instance) {
+            Some(&s) if s != NOT_MOVED => Some(&self.shapes[s as usize]),
+            _ => None,
+        }
+    }
+
+    /// The shape to fill for `instance` (its previous contents are unspecified; set every
+    /// field).
+    pub fn shape_mut(&mut self, instance: usize) -> &mut CullShape {
+        if self.slot.len() <= instance {
+            self.slot.resize(instance + 1, NOT_MOVED);
+        }
+        if self.slot[instance] == NOT_MOVED {
+            if self.used == self.shapes.len() {
+                self.shapes.push(CullShape {
+                    bounds: Bounds::EMPTY,
+                    trunk: Bounds::EMPTY,
+                    groups: Vec::new(),
+                });
+            }
+            self.slot[instance] = self.used as u32;
+            self.used += 1;
+        }
+        &mut self.shapes[self.slot[instance] as usize]
+    }
+}
+
 /// The box around `bounds` transformed by `transform`.
 pub fn transform_bounds(transform: &Affine3A, bounds: &Bounds) -> Bounds {
     if bounds.is_empty() {
@@ -199,14 +258,13 @@ fn test_instance(
     planes: &FrustumPlanes,
     instance: &CullInstance,
     world_bounds: &Bounds,
-    shapes: &[CullShape],
+    shape: &CullShape,
     result: &mut CullResult,
 ) -> InstanceVisibility {
     match planes.classify_box(world_bounds) {
         Containment::Outside => InstanceVisibility::Invisible,
         Containment::Inside => InstanceVisibility::Full,
         Containment::Intersecting => {
-            let shape = &shapes[instance.shape as usize];
             let trunk_box = transform_bounds(&instance.transform, &shape.trunk);
             let trunk = planes.classify_box(&trunk_box) != Containment::Outside;
             let first_word = result.group_bits.len();
@@ -233,18 +291,20 @@ fn test_instance(
     }
 }
 
-/// The reference: every instance tested on its own.
+/// The reference: every instance tested on its own, moved instances with their
+/// [`MovedShapes`].
 pub fn cull_brute_force(
     planes: &FrustumPlanes,
     instances: &[CullInstance],
     shapes: &[CullShape],
+    moved: &MovedShapes,
     result: &mut CullResult,
 ) {
     result.clear(instances.len());
     for (i, instance) in instances.iter().enumerate() {
-        let bounds = transform_bounds(&instance.transform, &shapes[instance.shape as usize].bounds);
-        let visibility = test_instance(planes, instance, &bounds, shapes, result);
-        result.visibility[i] = visibility;
+        let shape = moved.get(i).unwrap_or(&shapes[instance.shape as usize]);
+        let bounds = transform_bounds(&instance.transform, &shape.bounds);
+        result.visibility[i] = test_instance(planes, instance, &bounds, shape, result);
     }
 }
 
@@ -381,12 +441,17 @@ impl BoxHierarchy {
             .map(|(n, v)| (n.bounds, *v))
     }
 
-    /// Culls `instances` (the same slice, in the same order, as at build time).
+    /// Culls `instances` (the same slice, in the same order, as at build time). Instances
+    /// in `moved` are tested with their moved shape where their leaf is partially
+    /// visible; the hierarchy's boxes stay those of the trees at rest, so a tree swaying
+    /// across the edge of a box that is entirely outside the view is missed until it
+    /// comes back (a sway is a fraction of a tree, boxes hold many).
     pub fn cull(
         &mut self,
         planes: &FrustumPlanes,
         instances: &[CullInstance],
         shapes: &[CullShape],
+        moved: &MovedShapes,
         result: &mut CullResult,
     ) {
         result.clear(instances.len());
@@ -410,10 +475,15 @@ impl BoxHierarchy {
                     if level == self.depth {
                         for &i in &self.order[n.instances.0 as usize..n.instances.1 as usize] {
                             let i = i as usize;
-                            let bounds = self.instance_bounds[i];
-                            let visibility =
-                                test_instance(planes, &instances[i], &bounds, shapes, result);
-                            result.visibility[i] = visibility;
+                            let instance = &instances[i];
+                            let (shape, bounds) = match moved.get(i) {
+                                Some(shape) => {
+                                    (shape, transform_bounds(&instance.transform, &shape.bounds))
+                                }
+                                None => (&shapes[instance.shape as usize], self.instance_bounds[i]),
+                            };
+                            result.visibility[i] =
+                                test_instance(planes, instance, &bounds, shape, result);
                         }
                     } else {
                         let first_child = level_start(level + 1) + 4 * (node - level_start(level));

@@ -6,7 +6,7 @@ mod plugin;
 
 pub use hierarchy::{
     BoxHierarchy, Containment, CullInstance, CullResult, CullShape, FrustumPlanes,
-    InstanceVisibility, NodeVisibility, cull_brute_force, transform_bounds,
+    InstanceVisibility, MovedShapes, NodeVisibility, cull_brute_force, transform_bounds,
 };
 #[cfg(feature = "render")]
 pub use plugin::FullyVisibleBoxes;

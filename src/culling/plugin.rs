@@ -3,7 +3,9 @@
 
 use bevy::prelude::*;
 
-use super::hierarchy::{BoxHierarchy, CullInstance, CullResult, CullShape, FrustumPlanes};
+use super::hierarchy::{
+    BoxHierarchy, CullInstance, CullResult, CullShape, FrustumPlanes, MovedShapes,
+};
 use crate::SherwoodSystems;
 use crate::ecosystem::{ForestState, ForestTerrain, TreeInstance};
 use crate::tree::{Bounds, TreeModel};
@@ -28,6 +30,9 @@ pub struct ForestCulling {
     pub hierarchy: Option<BoxHierarchy>,
     /// This frame's answer.
     pub result: CullResult,
+    /// Shapes of the instances the wind moved this frame (filled by the wind stage,
+    /// which runs first), indexed like `entities`.
+    pub moved: MovedShapes,
     generation: u32,
     failed_logged: u32,
 }
@@ -145,6 +150,8 @@ fn rebuild_hierarchy(
         &shapes,
     ));
     culling.entities = entities;
+    // Indexed by the old order.
+    culling.moved.clear();
     culling.instances = list;
     culling.shapes = shapes;
     culling.generation = state.generation;
@@ -159,10 +166,11 @@ fn cull_forest(mut culling: ResMut<ForestCulling>, views: Query<&CullView>) {
         shapes,
         hierarchy,
         result,
+        moved,
         ..
     } = &mut *culling;
     if let Some(hierarchy) = hierarchy {
-        hierarchy.cull(&view.0, instances, shapes, result);
+        hierarchy.cull(&view.0, instances, shapes, moved, result);
     }
 }
 

@@ -4,6 +4,7 @@
 use bevy::math::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
+use crate::culling::CullShape;
 use crate::tree::{BoundingSphere, Bounds, NO_RING, TreeModel};
 
 /// A rule associating rings with a spring: the first rule a ring satisfies applies.
@@ -166,9 +167,10 @@ pub fn ring_offsets(
     }
 }
 
-/// The trunk box and leaf-group spheres of a moved instance (model space): a sphere per
-/// ring around its moved centre, leaf groups translated with their terminal ring.
-pub fn moved_bounds(model: &TreeModel, offsets: &[Vec3]) -> (Bounds, Vec<BoundingSphere>) {
+/// The culling shape of a moved instance (model space), written into `out`: a sphere per
+/// ring around its moved centre makes the trunk box, leaf groups are translated with their
+/// terminal ring, and the whole box holds both.
+pub fn moved_bounds(model: &TreeModel, offsets: &[Vec3], out: &mut CullShape) {
     let mut trunk = Bounds::EMPTY;
     for (ring, offset) in model.rings.iter().zip(offsets) {
         let c = ring.center + *offset;
@@ -178,13 +180,17 @@ pub fn moved_bounds(model: &TreeModel, offsets: &[Vec3]) -> (Bounds, Vec<Boundin
             max: c + r,
         });
     }
-    let groups = model
-        .leaf_groups
-        .iter()
-        .map(|g| BoundingSphere {
+    out.groups.clear();
+    out.groups
+        .extend(model.leaf_groups.iter().map(|g| BoundingSphere {
             center: g.bounds.center + offsets.get(g.ring as usize).copied().unwrap_or(Vec3::ZERO),
             radius: g.bounds.radius,
+        }));
+    out.bounds = out.groups.iter().fold(trunk, |b, s| {
+        b.union(Bounds {
+            min: s.center - Vec3::splat(s.radius),
+            max: s.center + Vec3::splat(s.radius),
         })
-        .collect();
-    (trunk, groups)
+    });
+    out.trunk = trunk;
 }

@@ -7,7 +7,7 @@ use bevy::prelude::*;
 use super::asset::SpringSet;
 use std::collections::HashMap;
 
-use super::motion::{RingMotion, associate, ring_offsets};
+use super::motion::{RingMotion, associate, moved_bounds, ring_offsets};
 use super::spring::{FixedStepper, Spring};
 use crate::SherwoodSystems;
 use crate::culling::{ForestCulling, InstanceVisibility};
@@ -48,6 +48,21 @@ pub struct RingOffsetTable {
     pub moved: u32,
 }
 
+/// What the wind stage did in the last frame.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+pub struct WindStats {
+    /// Visible instances with a spring set (candidates for motion).
+    pub candidates: u32,
+    /// Instances moved.
+    pub moved: u32,
+    /// Candidates left still by the motion level of detail (their largest spring
+    /// displacement projects below the set's pixel threshold).
+    pub skipped: u32,
+    /// Time of the per-instance work (ring offsets and moved bounds), milliseconds;
+    /// stepping the springs themselves (a few per set) is not included.
+    pub update_ms: f32,
+}
+
 #[derive(Resource, Default)]
 struct WindState {
     /// Per motion index: the set it was built from and its running springs.
@@ -58,6 +73,7 @@ pub(super) fn build(app: &mut App) {
     app.init_resource::<WindSettings>()
         .init_resource::<WindState>()
         .init_resource::<RingOffsetTable>()
+        .init_resource::<WindStats>()
         .add_systems(Startup, load_default_set)
         .add_systems(
             PostUpdate,
@@ -86,7 +102,16 @@ fn step_springs(
             continue;
         };
         if slot.as_ref().is_none_or(|(id, _, _)| *id != handle.id()) || sets.is_changed() {
-            let springs = set.springs.iter().cloned().map(Spring::new).collect();
+            let mut springs: Vec<Spring> = set.springs.iter().cloned().map(Spring::new).collect();
+            // An edited set keeps its springs' motion, so trees do not snap to rest.
+            if let Some((id, old, _)) = slot.as_ref()
+                && *id == handle.id()
+            {
+                for (new, old) in springs.iter_mut().zip(old) {
+                    new.displacement = old.displacement;
+                    new.velocity = old.velocity;
+                }
+            }
             *slot = Some((handle.id(), springs, FixedStepper::new(set.time_step)));
         }
         if let Some((_, springs, stepper)) = slot.as_mut() {
@@ -103,21 +128,31 @@ fn move_rings(
     settings: Res<WindSettings>,
     state: Res<WindState>,
     sets: Res<Assets<SpringSet>>,
-    culling: Res<ForestCulling>,
+    mut culling: ResMut<ForestCulling>,
     instances: Query<(&TreeInstance, &GlobalTransform)>,
     models: Res<Assets<TreeModel>>,
     views: Query<&LodView>,
     mut table: ResMut<RingOffsetTable>,
+    mut stats: ResMut<WindStats>,
     mut associations: Local<HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), Vec<RingMotion>>>,
 ) {
+    let start_time = std::time::Instant::now();
     let table = &mut *table;
     table.offsets.clear();
     table.starts.clear();
     table.moved = 0;
+    let mut counts = WindStats::default();
+    let ForestCulling {
+        entities,
+        result,
+        moved,
+        ..
+    } = &mut *culling;
+    moved.clear();
     let view = views.iter().next();
     let mut scratch = Vec::new();
     let mut displacements = Vec::new();
-    for (i, &entity) in culling.entities.iter().enumerate() {
+    for (i, &entity) in entities.iter().enumerate() {
         table.starts.push(table.offsets.len() as u32);
         let Ok((instance, transform)) = instances.get(entity) else {
             continue;
@@ -127,8 +162,7 @@ fn move_rings(
         };
         let start = table.offsets.len();
         table.offsets.resize(start + model.rings.len(), Vec3::ZERO);
-        let visible = culling
-            .result
+        let visible = result
             .visibility
             .get(i)
             .is_some_and(|v| *v != InstanceVisibility::Invisible);
@@ -146,6 +180,7 @@ fn move_rings(
         if !settings.enabled || !visible {
             continue;
         }
+        counts.candidates += 1;
         displacements.clear();
         displacements.extend(springs.iter().map(|s| s.displacement));
         // Motion LOD: skip the tree when its largest spring displacement projects below
@@ -156,6 +191,7 @@ fn move_rings(
         if let Some(ppu) = pixels_per_unit {
             let largest = displacements.iter().map(|d| d.length()).fold(0.0, f32::max);
             if largest * ppu < set.pixel_threshold {
+                counts.skipped += 1;
                 continue;
             }
         }
@@ -177,6 +213,12 @@ fn move_rings(
         );
         table.offsets[start..].copy_from_slice(&scratch);
         table.moved += 1;
+        moved_bounds(model, &scratch, moved.shape_mut(i));
     }
     table.starts.push(table.offsets.len() as u32);
+    *stats = WindStats {
+        moved: table.moved,
+        update_ms: start_time.elapsed().as_secs_f32() * 1000.0,
+        ..counts
+    };
 }

@@ -66,3 +66,72 @@ pub fn settle(app: &mut App, handle: &Handle<TreeModel>) -> LoadState {
     }
     panic!("asset neither loaded nor failed");
 }
+
+/// A headless app with a forest of `trees` trees (the default forest's species, in equal
+/// numbers, at its density) and a culling hierarchy 6 levels deep; returns it with the
+/// terrain's side. No view yet: see [`look_from`].
+pub fn forest_of(trees: u32) -> (App, f32) {
+    let mut app = headless_app();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/forests/default.ecosystem.ron"
+    ))
+    .unwrap();
+    let mut desc = bevy_sherwood::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap();
+    let species = desc.species.len() as u32;
+    for s in &mut desc.species {
+        s.count = trees / species;
+    }
+    desc.terrain.size *= (trees as f32 / 600.0).sqrt();
+    desc.culling_depth = 6;
+    let size = desc.terrain.size;
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<Ecosystem>>()
+        .add(Ecosystem(desc));
+    app.world_mut().spawn(Forest(handle));
+    (app, size)
+}
+
+/// Places the view (culling and LOD; 540 pixels high, 1.2 rad vertical field of view) at
+/// `eye` looking at `target`, spawning it the first time.
+pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
+    let fov = 1.2;
+    let clip_from_world = Mat4::perspective_infinite_reverse_rh(fov, 1.0, 0.1)
+        * Mat4::look_at_rh(eye, target, Vec3::Y);
+    let view = (
+        CullView(bevy_sherwood::culling::FrustumPlanes::from_clip_from_world(
+            clip_from_world,
+        )),
+        LodView {
+            position: eye,
+            forward: (target - eye).normalize(),
+            focal_pixels: 540.0 / (2.0 * (fov * 0.5).tan()),
+        },
+    );
+    let world = app.world_mut();
+    let existing = world
+        .query_filtered::<Entity, With<CullView>>()
+        .iter(world)
+        .next();
+    match existing {
+        Some(entity) => {
+            world.entity_mut(entity).insert(view);
+        }
+        None => {
+            world.spawn(view);
+        }
+    }
+}
+
+/// Updates until the LOD stages see a tree (bounded).
+pub fn until_visible(app: &mut App) {
+    for _ in 0..20_000 {
+        app.update();
+        if app.world().resource::<LodDiagnostics>().visible_instances > 0 {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    panic!("the forest never loaded");
+}
