@@ -26,10 +26,10 @@ const TREES: u32 = 2_000;
 fn edit_springs(app: &mut App, edit: impl Fn(&mut SpringSet)) {
     let handle = app.world().resource::<WindSettings>().sets[0].clone();
     let mut sets = app.world_mut().resource_mut::<Assets<SpringSet>>();
-    edit(
-        sets.get_mut(&handle)
-            .expect("the default spring set is loaded"),
-    );
+    let mut set = sets
+        .get_mut(&handle)
+        .expect("the default spring set is loaded");
+    edit(&mut set);
 }
 
 /// Mean stage time (ms) and the last frame's stats over `frames` frames.

@@ -270,7 +270,8 @@ impl ModelSlot {
         }
     }
 
-    fn leaf_triangle_range(&self, leaves: &Range<u32>) -> Range<u32> {
+    /// The atlas triangles of a range of this model's leaves (clipped to the model).
+    pub fn leaf_triangle_range(&self, leaves: &Range<u32>) -> Range<u32> {
         let r = clip(leaves, self.point_count);
         self.leaf_triangles + self.leaf_triangle_prefix[r.start as usize]
             ..self.leaf_triangles + self.leaf_triangle_prefix[r.end as usize]
@@ -377,14 +378,15 @@ impl GeometryAtlas {
 }
 
 /// A fixed-size piece of one range: `count` primitives from `first` (absolute), of tree
-/// instance `instance`; `param` is the line width or point size in pixels, or for
-/// triangles 0 (trunk) or 1 (leaves).
+/// instance `instance` — or, when `instance` is [`GATHERED`], `count` slots of
+/// [`FrameChunks::gathered`] from `first`; `param` is the line width or point size in
+/// pixels, or for triangles 0 (trunk) or 1 (leaves).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct GpuChunk {
-    /// Index into the frame's instance records.
+    /// Index into the frame's instance records, or [`GATHERED`].
     pub instance: u32,
-    /// First primitive (triangle index or primitive index).
+    /// First primitive (triangle index or primitive index), or first gathered slot.
     pub first: u32,
     /// Primitives in this chunk, at most the kind's chunk size.
     pub count: u32,
@@ -439,24 +441,65 @@ impl PrimitiveKind {
 }
 
 /// A frame's chunks, per primitive kind.
+///
+/// Every chunk is drawn with the kind's full vertex count, so a chunk holding one
+/// primitive costs as many vertex invocations as a full one. Runs are therefore split:
+/// whole chunks of a run are drawn directly from the model's range, and what is left of
+/// each run (every run shorter than a chunk, and the tails of longer ones) is gathered
+/// per kind and width/size into a list of `(instance, primitive)` pairs and chunked from
+/// there, so only one chunk per kind and parameter is partly filled. (Before, a tree
+/// drawn at its cheapest — a point or two per leaf group — filled 1 in 32 slots of
+/// each of its ~25 point chunks, and the wasted invocations cost more than the whole
+/// budgeted pass.)
 #[derive(Clone, Debug, Default)]
 pub struct FrameChunks {
     /// Per kind in [`PrimitiveKind::ALL`] order.
     pub kinds: [Vec<GpuChunk>; 4],
+    /// `(instance, primitive)` of each slot of the gathered chunks
+    /// ([`GpuChunk::instance`] = [`GATHERED`]), which index this list.
+    pub gathered: Vec<[u32; 2]>,
+    /// Per kind, leftover primitives waiting for [`finish`](Self::finish):
+    /// `(param, instance, primitive)`.
+    pending: [Vec<(u32, u32, u32)>; 4],
 }
+
+/// [`GpuChunk::instance`] of a chunk whose slots are listed in [`FrameChunks::gathered`]
+/// from [`GpuChunk::first`] on.
+pub const GATHERED: u32 = u32::MAX;
 
 impl FrameChunks {
     /// Empties every kind, keeping the allocations.
     pub fn clear(&mut self) {
         self.kinds.iter_mut().for_each(Vec::clear);
+        self.pending.iter_mut().for_each(Vec::clear);
+        self.gathered.clear();
     }
 
-    /// The chunks of one kind.
+    /// The chunks of one kind (complete after [`finish`](Self::finish)).
     pub fn of(&self, kind: PrimitiveKind) -> &[GpuChunk] {
         &self.kinds[kind as usize]
     }
 
+    /// The `(instance, primitive)` of every slot of `chunk`.
+    pub fn slots(&self, chunk: &GpuChunk) -> impl Iterator<Item = (u32, u32)> + '_ {
+        let (first, count) = (chunk.first as usize, chunk.count as usize);
+        let (gathered, direct) = if chunk.instance == GATHERED {
+            (
+                self.gathered.get(first..first + count).unwrap_or_default(),
+                0..0,
+            )
+        } else {
+            (&[][..], chunk.first..chunk.first + chunk.count)
+        };
+        let instance = chunk.instance;
+        gathered
+            .iter()
+            .map(|&[i, p]| (i, p))
+            .chain(direct.map(move |p| (instance, p)))
+    }
+
     /// Appends the chunks of instance `instance` drawing `list` of the model at `slot`.
+    /// Call [`finish`](Self::finish) once every instance is in.
     pub fn push(&mut self, instance: u32, slot: &ModelSlot, list: &TreeDrawList) {
         let trunk = clip(&list.trunk_triangles, slot.trunk_triangle_count);
         self.push_range(
@@ -493,19 +536,40 @@ impl FrameChunks {
         }
     }
 
+    /// Chunks the gathered leftovers: per kind, by parameter, in the order they came.
+    pub fn finish(&mut self) {
+        for (kind, pending) in PrimitiveKind::ALL.into_iter().zip(&mut self.pending) {
+            pending.sort_by_key(|p| p.0);
+            let per_chunk = kind.per_chunk() as usize;
+            let out = &mut self.kinds[kind as usize];
+            for run in pending.chunk_by(|a, b| a.0 == b.0) {
+                for piece in run.chunks(per_chunk) {
+                    out.push(GpuChunk {
+                        instance: GATHERED,
+                        first: self.gathered.len() as u32,
+                        count: piece.len() as u32,
+                        param: piece[0].0,
+                    });
+                    self.gathered.extend(piece.iter().map(|p| [p.1, p.2]));
+                }
+            }
+            pending.clear();
+        }
+    }
+
     fn push_range(&mut self, kind: PrimitiveKind, instance: u32, range: Range<u32>, param: u32) {
         let per_chunk = kind.per_chunk();
+        let whole = range.len() as u32 / per_chunk * per_chunk;
         let out = &mut self.kinds[kind as usize];
-        let mut first = range.start;
-        while first < range.end {
-            let count = (range.end - first).min(per_chunk);
+        for first in (range.start..range.start + whole).step_by(per_chunk as usize) {
             out.push(GpuChunk {
                 instance,
                 first,
-                count,
+                count: per_chunk,
                 param,
             });
-            first += count;
         }
+        self.pending[kind as usize]
+            .extend((range.start + whole..range.end).map(|p| (param, instance, p)));
     }
 }

@@ -8,13 +8,6 @@ use bevy_sherwood::draw::*;
 use bevy_sherwood::tree::TreeModel;
 use proptest::prelude::*;
 
-fn chunk_ranges(chunks: &[GpuChunk]) -> Vec<(u32, u32, u32)> {
-    chunks
-        .iter()
-        .map(|c| (c.instance, c.first, c.first + c.count))
-        .collect()
-}
-
 #[test]
 fn the_atlas_keeps_each_model_apart_and_addresses_leaves_by_range() {
     let (slender, broad) = (species("slender"), species("broad"));
@@ -78,15 +71,23 @@ fn full_detail_is_every_triangle_in_few_chunks() {
     );
     let mut chunks = FrameChunks::default();
     chunks.push(7, &slot, &list);
+    chunks.finish();
     let trunk = chunks.of(PrimitiveKind::TrunkTriangles);
     assert_eq!(
         trunk.len() as u32,
         (model.trunk_triangle_count() as u32).div_ceil(TRIANGLES_PER_CHUNK)
     );
+    assert!(trunk.iter().all(|c| c.param == PART_TRUNK));
+    // Whole chunks are drawn straight from the range, the tail is gathered.
+    let partial = trunk
+        .iter()
+        .filter(|c| c.count < TRIANGLES_PER_CHUNK)
+        .count();
+    assert!(partial <= 1);
     assert!(
         trunk
             .iter()
-            .all(|c| c.instance == 7 && c.param == PART_TRUNK)
+            .all(|c| (c.instance == 7) == (c.count == TRIANGLES_PER_CHUNK))
     );
     assert!(chunks.of(PrimitiveKind::Lines).is_empty());
     assert!(chunks.of(PrimitiveKind::Points).is_empty());
@@ -119,6 +120,7 @@ fn ranges_past_the_model_are_clipped_not_trusted() {
     assert_eq!(counts.points, 0);
     let mut chunks = FrameChunks::default();
     chunks.push(0, &slot, &list);
+    chunks.finish();
     let lines = chunks.of(PrimitiveKind::Lines);
     assert_eq!(lines.len(), 1);
     assert_eq!(lines[0].param, 1, "a zero width is drawn one pixel wide");
@@ -137,7 +139,9 @@ fn an_empty_list_draws_nothing() {
     let slot = atlas.push(&model);
     let mut chunks = FrameChunks::default();
     chunks.push(0, &slot, &list);
+    chunks.finish();
     assert!(PrimitiveKind::ALL.iter().all(|&k| chunks.of(k).is_empty()));
+    assert!(chunks.gathered.is_empty());
 }
 
 static BROAD: std::sync::LazyLock<TreeModel> = std::sync::LazyLock::new(|| species("broad"));
@@ -171,32 +175,57 @@ proptest! {
         list.trunk_lines.push(LineRun { segments: 0..split, width: widths[0] });
         list.trunk_lines.push(LineRun { segments: split..segments, width: widths[1] });
 
+        // Two instances, so gathered chunks mix them.
         let mut chunks = FrameChunks::default();
         chunks.push(3, &slot, &list);
-        for kind in PrimitiveKind::ALL {
-            for c in chunks.of(kind) {
-                prop_assert!(c.count > 0 && c.count <= kind.per_chunk());
-                prop_assert_eq!(c.instance, 3);
+        chunks.push(5, &slot, &list);
+        chunks.finish();
+        let expected = |kind: PrimitiveKind| {
+            let mut wanted: Vec<(u32, u32, u32)> = Vec::new();
+            for instance in [3, 5] {
+                let mut add = |range: core::ops::Range<u32>, param: u32| {
+                    wanted.extend(range.map(|p| (instance, p, param)));
+                };
+                match kind {
+                    PrimitiveKind::TrunkTriangles => add(
+                        slot.trunk_triangles + list.trunk_triangles.start
+                            ..slot.trunk_triangles + list.trunk_triangles.end,
+                        PART_TRUNK,
+                    ),
+                    PrimitiveKind::LeafTriangles => list
+                        .leaf_triangles
+                        .iter()
+                        .for_each(|r| add(slot.leaf_triangle_range(r), PART_LEAVES)),
+                    PrimitiveKind::Lines => list.trunk_lines.iter().for_each(|r| {
+                        add(slot.lines + r.segments.start..slot.lines + r.segments.end, r.width);
+                    }),
+                    PrimitiveKind::Points => list.leaf_points.iter().for_each(|r| {
+                        add(slot.points + r.leaves.start..slot.points + r.leaves.end, r.size);
+                    }),
+                }
             }
-        }
-        // Consecutive chunks of one range join up; their total is the range's length.
-        let total = |kind| chunk_ranges(chunks.of(kind)).iter().map(|r| u64::from(r.2 - r.1)).sum::<u64>();
+            wanted.sort_unstable();
+            wanted
+        };
         let counts = slot.counts(&list);
         prop_assert_eq!(counts, list.counts(model));
-        prop_assert_eq!(total(PrimitiveKind::TrunkTriangles) + total(PrimitiveKind::LeafTriangles), counts.triangles);
-        prop_assert_eq!(total(PrimitiveKind::Lines), counts.lines);
-        prop_assert_eq!(total(PrimitiveKind::Points), counts.points);
-        let mut points = chunks.of(PrimitiveKind::Points).iter();
-        for run in list.leaf_points.iter().filter(|r| !r.leaves.is_empty()) {
-            let mut next = slot.points + run.leaves.start;
-            while next < slot.points + run.leaves.end {
-                let c = points.next().unwrap();
-                prop_assert_eq!(c.first, next);
-                prop_assert_eq!(c.param, run.size);
-                next += c.count;
+        let mut drawn_total = 0;
+        for kind in PrimitiveKind::ALL {
+            let mut drawn: Vec<(u32, u32, u32)> = Vec::new();
+            let mut partial = std::collections::HashSet::new();
+            for c in chunks.of(kind) {
+                prop_assert!(c.count > 0 && c.count <= kind.per_chunk());
+                if c.count < kind.per_chunk() {
+                    // At most one partly filled chunk per parameter.
+                    prop_assert!(partial.insert(c.param));
+                }
+                drawn.extend(chunks.slots(c).map(|(i, p)| (i, p, c.param)));
             }
-            prop_assert_eq!(next, slot.points + run.leaves.end);
+            drawn_total += drawn.len() as u64;
+            drawn.sort_unstable();
+            // Every requested primitive exactly once, with its instance and width/size.
+            prop_assert_eq!(drawn, expected(kind));
         }
-        prop_assert!(points.next().is_none());
+        prop_assert_eq!(drawn_total, 2 * (counts.triangles + counts.lines + counts.points));
     }
 }

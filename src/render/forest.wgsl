@@ -67,6 +67,25 @@ struct Chunk {
 @group(2) @binding(0) var<storage, read> instances: array<Instance>;
 @group(2) @binding(1) var<storage, read> chunks: array<Chunk>;
 @group(2) @binding(2) var<storage, read> ring_offsets: array<vec4<f32>>;
+// (instance, primitive) of each slot of the gathered chunks.
+@group(2) @binding(3) var<storage, read> gathered: array<vec2<u32>>;
+
+// `Chunk::instance` of a chunk whose slots are listed in `gathered` from `first` on.
+const GATHERED: u32 = 0xffffffffu;
+
+struct Slot {
+    instance: u32,
+    primitive: u32,
+}
+
+// The instance and primitive in slot `slot` of `chunk` (see `FrameChunks` in draw.rs).
+fn chunk_slot(chunk: Chunk, slot: u32) -> Slot {
+    if chunk.instance == GATHERED {
+        let entry = gathered[chunk.first + slot];
+        return Slot(entry.x, entry.y);
+    }
+    return Slot(chunk.instance, chunk.first + slot);
+}
 
 struct LitVertex {
     @builtin(position) clip: vec4<f32>,
@@ -132,13 +151,14 @@ fn vs_triangles(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chu
         out.clip = DEGENERATE;
         return out;
     }
-    let instance = instances[chunk.instance];
-    let v = vertices[indices[(chunk.first + triangle) * 3u + vertex % 3u]];
+    let slot = chunk_slot(chunk, triangle);
+    let instance = instances[slot.instance];
+    let v = vertices[indices[slot.primitive * 3u + vertex % 3u]];
     let world = to_world(instance, v.position + ring_offset(instance, v.ring));
     out.clip = view.clip_from_world * vec4<f32>(world, 1.0);
     out.world_position = world;
     out.world_normal = normal_to_world(instance, v.normal);
-    out.instance = chunk.instance;
+    out.instance = slot.instance;
     out.part = chunk.param;
     return out;
 }
@@ -179,8 +199,9 @@ fn vs_lines(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_i
         out.clip = DEGENERATE;
         return out;
     }
-    let instance = instances[chunk.instance];
-    let p = primitives[chunk.first + line];
+    let slot = chunk_slot(chunk, line);
+    let instance = instances[slot.instance];
+    let p = primitives[slot.primitive];
     var a = view.clip_from_world * vec4<f32>(to_world(instance, p.a + ring_offset(instance, p.ring_a)), 1.0);
     var b = view.clip_from_world * vec4<f32>(to_world(instance, p.b + ring_offset(instance, p.ring_b)), 1.0);
     // Reverse-Z: a point is in front of the near plane when z <= w. Clip the segment there
@@ -225,8 +246,9 @@ fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_
         out.clip = DEGENERATE;
         return out;
     }
-    let instance = instances[chunk.instance];
-    let p = primitives[chunk.first + point];
+    let slot = chunk_slot(chunk, point);
+    let instance = instances[slot.instance];
+    let p = primitives[slot.primitive];
     let world = to_world(instance, p.a + ring_offset(instance, p.ring_a));
     let center = view.clip_from_world * vec4<f32>(world, 1.0);
     if center.w - center.z < 0.0 {

@@ -348,6 +348,7 @@ fn extract_forest(
         frame.chunks.push(index, slot, list);
         frame.counts += slot.counts(list);
     }
+    frame.chunks.finish();
 }
 
 /// GPU copies of the frame's records and the shared geometry.
@@ -359,6 +360,7 @@ struct ForestBuffers {
     instances: RawBufferVec<GpuInstance>,
     chunks: RawBufferVec<crate::draw::GpuChunk>,
     ring_offsets: RawBufferVec<[f32; 4]>,
+    gathered: RawBufferVec<[u32; 2]>,
     light: RawBufferVec<GpuLight>,
     /// First chunk of each kind in `chunks`, and the end.
     kind_starts: [u32; 5],
@@ -374,6 +376,7 @@ impl Default for ForestBuffers {
             instances: RawBufferVec::new(storage()),
             chunks: RawBufferVec::new(storage()),
             ring_offsets: RawBufferVec::new(storage()),
+            gathered: RawBufferVec::new(storage()),
             light: RawBufferVec::new(BufferUsages::UNIFORM | BufferUsages::COPY_DST),
             kind_starts: [0; 5],
         }
@@ -411,6 +414,7 @@ fn upload_buffers(
     }
     fill(&mut buffers.instances, &frame.instances);
     fill(&mut buffers.ring_offsets, &frame.ring_offsets);
+    fill(&mut buffers.gathered, &frame.chunks.gathered);
     fill(&mut buffers.light, &[frame.light]);
     let chunks = buffers.chunks.values_mut();
     chunks.clear();
@@ -424,6 +428,7 @@ fn upload_buffers(
     }
     buffers.instances.write_buffer(&device, &queue);
     buffers.ring_offsets.write_buffer(&device, &queue);
+    buffers.gathered.write_buffer(&device, &queue);
     buffers.light.write_buffer(&device, &queue);
     buffers.chunks.write_buffer(&device, &queue);
 
@@ -472,7 +477,7 @@ fn init_pipeline(mut commands: Commands, asset_server: Res<AssetServer>) {
             "sherwood_forest_frame",
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::VERTEX_FRAGMENT,
-                (storage(), storage(), storage()),
+                (storage(), storage(), storage(), storage()),
             ),
         ),
         shader: load_embedded_asset!(asset_server.as_ref(), "forest.wgsl"),
@@ -593,6 +598,7 @@ fn create_bind_groups(
         Some(instances),
         Some(chunks),
         Some(ring_offsets),
+        Some(gathered),
     ) = (
         pipeline,
         view_uniforms.uniforms.binding(),
@@ -603,6 +609,7 @@ fn create_bind_groups(
         buffers.instances.binding(),
         buffers.chunks.binding(),
         buffers.ring_offsets.binding(),
+        buffers.gathered.binding(),
     )
     else {
         commands.remove_resource::<ForestBindGroups>();
@@ -622,7 +629,7 @@ fn create_bind_groups(
         frame: device.create_bind_group(
             "sherwood_forest_frame",
             &cache.get_bind_group_layout(&pipeline.frame_layout),
-            &BindGroupEntries::sequential((instances, chunks, ring_offsets)),
+            &BindGroupEntries::sequential((instances, chunks, ring_offsets, gathered)),
         ),
     });
 }
