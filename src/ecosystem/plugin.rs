@@ -244,7 +244,10 @@ fn spawn_forests(
             ))
             .id();
         #[cfg(feature = "render")]
-        if let Some(meshes) = meshes.as_mut() {
+        if let Some(meshes) = meshes
+            .as_mut()
+            .filter(|_| materials.is_some() || standard_materials.is_some())
+        {
             let t = &layout.terrain;
             let mesh = meshes.add(crate::tree::triangle_mesh(
                 &t.mesh_positions(),
