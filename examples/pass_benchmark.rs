@@ -17,19 +17,18 @@
 
 use std::time::Instant;
 
-use bevy::app::PluginsState;
+#[path = "support/windowless.rs"]
+mod windowless;
+
 use bevy::camera::{ClearColorConfig, RenderTarget};
 use bevy::prelude::*;
+use bevy::render::RenderApp;
 use bevy::render::diagnostic::RenderDiagnosticsPlugin;
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::{
     CachedPipelineState, PipelineCache, PollType, TextureFormat, TextureUsages,
 };
 use bevy::render::renderer::RenderDevice;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
-use bevy::render::{RenderApp, RenderPlugin};
-use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
 use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
 use bevy_sherwood::ecosystem::TreeInstance;
 use bevy_sherwood::prelude::*;
@@ -50,32 +49,14 @@ struct Bench {
 impl Bench {
     fn new() -> Self {
         let mut app = App::new();
-        app.add_plugins(
-            DefaultPlugins
-                .set(WindowPlugin {
-                    primary_window: None,
-                    exit_condition: ExitCondition::DontExit,
-                    close_when_requested: false,
-                    ..default()
-                })
-                .set(RenderPlugin {
-                    synchronous_pipeline_compilation: true,
-                    ..default()
-                })
-                .disable::<WinitPlugin>()
-                .disable::<PipelinedRenderingPlugin>(),
-        )
-        .add_plugins((
-            SherwoodCorePlugin,
-            TreePlugin,
-            ForestRenderPlugin,
-            RenderDiagnosticsPlugin,
-        ));
-        while app.plugins_state() == PluginsState::Adding {
-            bevy::tasks::tick_global_task_pools_on_main_thread();
-        }
-        app.finish();
-        app.cleanup();
+        app.add_plugins(windowless::windowless_plugins())
+            .add_plugins((
+                SherwoodCorePlugin,
+                TreePlugin,
+                ForestRenderPlugin,
+                RenderDiagnosticsPlugin,
+            ));
+        windowless::finish_plugins(&mut app);
         let world = app.world_mut();
         let mut image =
             Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);

@@ -6,19 +6,17 @@
 //! cargo run --release --example wind_gust -- docs/wind-gust.png
 //! ```
 
+#[path = "support/windowless.rs"]
+mod windowless;
+
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use bevy::app::PluginsState;
 use bevy::camera::RenderTarget;
 use bevy::prelude::*;
-use bevy::render::RenderPlugin;
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::time::TimeUpdateStrategy;
-use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
 use bevy_sherwood::ecosystem::EcosystemDesc;
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::wind::{GustDesc, SpringDesc, SpringSet, WindDesc, WindSettings};
@@ -36,35 +34,16 @@ fn main() -> AppExit {
         .nth(1)
         .unwrap_or_else(|| "wind-gust.png".into());
     let mut app = App::new();
-    app.add_plugins(
-        DefaultPlugins
-            .set(WindowPlugin {
-                primary_window: None,
-                exit_condition: ExitCondition::DontExit,
-                close_when_requested: false,
-                ..default()
-            })
-            .set(RenderPlugin {
-                synchronous_pipeline_compilation: true,
-                ..default()
-            })
-            .disable::<WinitPlugin>()
-            .disable::<PipelinedRenderingPlugin>(),
-    )
-    .add_plugins(SherwoodPlugins)
-    .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
-    .insert_resource(FrameBudget {
-        mode: LodMode::Unlimited,
-        ..default()
-    })
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
-        FRAME_SECONDS,
-    )));
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
+    app.add_plugins((windowless::windowless_plugins(), SherwoodPlugins))
+        .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
+        .insert_resource(FrameBudget {
+            mode: LodMode::Unlimited,
+            ..default()
+        })
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
+            FRAME_SECONDS,
+        )));
+    windowless::finish_plugins(&mut app);
 
     let image = setup(app.world_mut());
     // Let the forest load, the pipelines compile and the calm wind settle.

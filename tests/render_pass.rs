@@ -6,21 +6,19 @@
 #![cfg(feature = "gpu-tests")]
 
 mod common;
+#[path = "../examples/support/windowless.rs"]
+mod windowless;
 use common::species;
 
 use std::sync::{Arc, Mutex};
 
-use bevy::app::PluginsState;
 use bevy::camera::{ClearColorConfig, RenderTarget};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::log::LogPlugin;
 use bevy::prelude::*;
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::render::RenderApp;
 use bevy::render::render_resource::{CachedPipelineState, PipelineCache, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-use bevy::render::{RenderApp, RenderPlugin};
-use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
 use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
 use bevy_sherwood::ecosystem::{EcosystemPlugin, TerrainMaterial, TreeInstance};
 use bevy_sherwood::render::ForestRenderPlugin;
@@ -107,22 +105,9 @@ fn render_views(
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     let mut app = App::new();
     app.add_plugins(
-        DefaultPlugins
-            .set(WindowPlugin {
-                primary_window: None,
-                exit_condition: ExitCondition::DontExit,
-                close_when_requested: false,
-                ..default()
-            })
-            .set(RenderPlugin {
-                synchronous_pipeline_compilation: true,
-                ..default()
-            })
-            .disable::<WinitPlugin>()
+        windowless::windowless_plugins()
             // Several apps in one process: only the first could install a logger.
-            .disable::<LogPlugin>()
-            // The render world stays on this thread, where the test can inspect it.
-            .disable::<PipelinedRenderingPlugin>(),
+            .disable::<LogPlugin>(),
     )
     .add_plugins((
         SherwoodCorePlugin,
@@ -130,11 +115,7 @@ fn render_views(
         ForestRenderPlugin,
         EcosystemPlugin,
     ));
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
+    windowless::finish_plugins(&mut app);
 
     let world = app.world_mut();
     let mut images = Vec::new();
