@@ -25,7 +25,7 @@ use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
-use bevy_sherwood::ecosystem::{EcosystemDesc, ForestTerrain};
+use bevy_sherwood::ecosystem::{EcosystemDesc, ForestState, ForestTerrain};
 use bevy_sherwood::lod::{CalibrationChoice, LodCostModel, StrategyKind};
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::{
@@ -285,15 +285,22 @@ fn main() -> AppExit {
         },
         ..default()
     };
+    // The ecosystem file is read from the source tree (see `setup`); the species it names
+    // must come from the same place however the binary is started.
+    let assets = AssetPlugin {
+        file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
+        ..default()
+    };
+    let plugins = DefaultPlugins.set(window).set(assets);
     if options.headless {
-        app.add_plugins(DefaultPlugins.set(window).disable::<WinitPlugin>())
+        app.add_plugins(plugins.disable::<WinitPlugin>())
             .add_plugins(ScheduleRunnerPlugin::run_loop(Duration::ZERO));
         // Without a swapchain nothing holds the CPU back while the GPU queue grows: wait
         // for each frame's GPU work so that frame times are real.
         app.sub_app_mut(RenderApp)
             .add_systems(Render, wait_for_gpu.in_set(RenderSystems::Cleanup));
     } else {
-        app.add_plugins(DefaultPlugins.set(window));
+        app.add_plugins(plugins);
     }
     app.add_plugins((
         SherwoodPlugins,
@@ -327,7 +334,10 @@ fn main() -> AppExit {
             })
             .add_systems(Update, exit_after_calibration.after(CalibrationRunSystems));
     } else {
-        app.add_systems(Update, (keys, fly, follow_path, measure).chain());
+        app.add_systems(
+            Update,
+            (stop_when_no_species_loads, keys, fly, follow_path, measure).chain(),
+        );
     }
     app.insert_resource(options).run()
 }
@@ -423,6 +433,37 @@ fn setup(
     hud.footer =
         "WASD/QE move, right drag look | +/- target  M mode  B strategy  N wind  C boxes  H hud"
             .into();
+}
+
+/// With every species failed there is nothing to draw, and the frame counter (which starts
+/// at the first drawn frame) would wait forever: say why and stop.
+fn stop_when_no_species_loads(
+    forests: Query<&ForestState>,
+    server: Res<AssetServer>,
+    mut exit: MessageWriter<AppExit>,
+    mut reported: Local<bool>,
+) {
+    if *reported {
+        return;
+    }
+    for state in &forests {
+        let failures: Vec<String> = state
+            .species
+            .iter()
+            .filter_map(|species| match server.load_state(species) {
+                bevy::asset::LoadState::Failed(e) => Some(e.to_string()),
+                _ => None,
+            })
+            .collect();
+        if !state.species.is_empty() && failures.len() == state.species.len() {
+            for failure in failures {
+                eprintln!("forest: {failure}");
+            }
+            eprintln!("forest: no species of the ecosystem loaded; nothing to draw");
+            *reported = true;
+            exit.write(AppExit::error());
+        }
+    }
 }
 
 fn keys(

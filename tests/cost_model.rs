@@ -61,11 +61,43 @@ fn logic_interpolation_at_between_and_outside_the_samples() {
     assert!((table.time(500) - 0.005).abs() < 1e-7); // at
     assert!((table.time(250) - 0.0035).abs() < 1e-7); // between
     assert!((table.time(750) - 0.0075).abs() < 1e-7);
-    assert!((table.time(1500) - 0.015).abs() < 1e-6); // beyond: nearest segment extended
+    // Beyond: the last sample extended with the overall slope (0.008 s per 1000).
+    assert!((table.time(1500) - 0.014).abs() < 1e-6);
     let falling = LogicTable::new(100.0, vec![(100, 0.001), (200, 0.0005)]);
     assert_eq!(falling.time(1000), 0.0); // never negative
     assert_eq!(LogicTable::default().time(10), 0.0);
     assert_eq!(LogicTable::new(0.0, vec![(5, 0.003)]).time(99), 0.003);
+}
+
+#[test]
+fn noisy_neighbouring_logic_samples_cannot_send_the_estimate_to_seconds() {
+    // Shaped like the 200 ms table of the first lavapipe calibration: two samples one
+    // instance apart, 20 ms different (frame-time noise).
+    let table = LogicTable::new(
+        200.0,
+        vec![
+            (0, 0.0),
+            (41, 0.0016),
+            (300, 0.03),
+            (533, 0.0),
+            (534, 0.0203),
+        ],
+    );
+    assert_eq!(table.samples.len(), 4, "533 and 534 are one sample");
+    assert_eq!(table.samples[3], (534, 0.01015));
+    // Overall slope 0.01015 s / 534 instances: about 19 ms at 1000, not the ~9 s the
+    // last raw segment (20 ms per instance) would give.
+    let at_1000 = table.time(1000);
+    let expected = 0.01015 + 0.01015 / 534.0 * 466.0;
+    assert!((at_1000 - expected).abs() < 1e-5, "{at_1000} vs {expected}");
+    // A hand-built table with a repeated count still gives finite times.
+    let repeated = LogicTable {
+        target_ms: 100.0,
+        samples: vec![(10, 0.001), (10, 0.002), (20, 0.003)],
+    };
+    for visible in [0, 10, 15, 20, 40] {
+        assert!(repeated.time(visible).is_finite());
+    }
 }
 
 #[test]

@@ -259,45 +259,77 @@ pub struct LogicTable {
 }
 
 impl LogicTable {
-    /// A table from samples in any order (non-finite or negative times dropped; equal
-    /// counts averaged).
+    /// A table from samples in any order: non-finite or negative times are dropped, and
+    /// samples whose visible counts lie within [`LogicTable::merge_gap`] of a run's first
+    /// count are averaged into one (count and time). Frame times on a shared machine vary
+    /// by tens of percent, so two samples one instance apart would otherwise make a
+    /// segment whose slope is noise (the lavapipe calibration had 533 → 0 ms and
+    /// 534 → 20 ms).
     pub fn new(target_ms: f32, mut samples: Vec<(u32, f32)>) -> Self {
         samples.retain(|s| s.1.is_finite() && s.1 >= 0.0);
         samples.sort_by_key(|s| s.0);
-        let mut merged: Vec<(u32, f32, u32)> = Vec::new();
+        let gap = Self::merge_gap(samples.last().map_or(0, |s| s.0));
+        // (first count of the run, sum of counts, sum of times, samples)
+        let mut runs: Vec<(u32, f64, f64, u32)> = Vec::new();
         for (n, t) in samples {
-            match merged.last_mut() {
-                Some(last) if last.0 == n => {
-                    last.1 += t;
-                    last.2 += 1;
+            match runs.last_mut() {
+                Some(run) if n - run.0 <= gap => {
+                    run.1 += f64::from(n);
+                    run.2 += f64::from(t);
+                    run.3 += 1;
                 }
-                _ => merged.push((n, t, 1)),
+                _ => runs.push((n, f64::from(n), f64::from(t), 1)),
             }
         }
         Self {
             target_ms,
-            samples: merged
+            samples: runs
                 .into_iter()
-                .map(|(n, t, k)| (n, t / k as f32))
+                .map(|(_, n, t, k)| {
+                    let k = f64::from(k);
+                    ((n / k).round() as u32, (t / k) as f32)
+                })
                 .collect(),
         }
     }
 
+    /// Samples whose visible counts differ by at most this much are one sample: 2% of the
+    /// largest count, at least 2.
+    pub fn merge_gap(largest_count: u32) -> u32 {
+        (largest_count / 50).max(2)
+    }
+
     /// Logic time with `visible` instances: linear between the two nearest samples;
-    /// outside the sampled range, the nearest segment extended (never below zero); a
-    /// single sample is a constant; an empty table is 0.
+    /// outside the sampled range, the nearest end sample extended with the table's
+    /// overall slope (first to last sample, so one noisy end segment cannot send the
+    /// estimate to seconds), never below zero; a single sample is a constant; an empty
+    /// table is 0.
     pub fn time(&self, visible: u32) -> f32 {
         let s = &self.samples;
-        match s.len() {
-            0 => 0.0,
-            1 => s[0].1,
-            _ => {
-                let i = s.partition_point(|p| p.0 <= visible).clamp(1, s.len() - 1);
-                let (a, b) = (s[i - 1], s[i]);
-                let t = (visible as f32 - a.0 as f32) / (b.0 as f32 - a.0 as f32);
-                (a.1 + t * (b.1 - a.1)).max(0.0)
-            }
+        let (Some(&first), Some(&last)) = (s.first(), s.last()) else {
+            return 0.0;
+        };
+        if s.len() == 1 {
+            return first.1;
         }
+        let span = last.0.saturating_sub(first.0);
+        let overall_slope = if span == 0 {
+            0.0
+        } else {
+            (last.1 - first.1) / span as f32
+        };
+        let time = if visible <= first.0 {
+            first.1 - overall_slope * (first.0 - visible) as f32
+        } else if visible >= last.0 {
+            last.1 + overall_slope * (visible - last.0) as f32
+        } else {
+            let i = s.partition_point(|p| p.0 <= visible).clamp(1, s.len() - 1);
+            let (a, b) = (s[i - 1], s[i]);
+            // `max(1)`: the fields are public, so a hand-built table may repeat a count.
+            let t = visible.saturating_sub(a.0) as f32 / b.0.saturating_sub(a.0).max(1) as f32;
+            a.1 + t.min(1.0) * (b.1 - a.1)
+        };
+        time.max(0.0)
     }
 }
 
@@ -445,7 +477,11 @@ pub enum CalibrationError {
 impl Calibration {
     /// Parses and validates a calibration.
     pub fn from_ron_str(text: &str) -> Result<Self, CalibrationError> {
-        let calibration: Self = crate::ron_options().from_str(text)?;
+        let mut calibration: Self = crate::ron_options().from_str(text)?;
+        // Files written before near-equal counts were merged, or edited by hand.
+        for table in &mut calibration.logic {
+            *table = LogicTable::new(table.target_ms, core::mem::take(&mut table.samples));
+        }
         let costs = core::iter::once(&calibration.triangles)
             .chain(&calibration.lines)
             .chain(&calibration.points);
