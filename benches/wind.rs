@@ -2,20 +2,26 @@
 //! moving tree) in a headless app, timed by the stage's own clock (`WindStats::update_ms`),
 //! with simulated time advancing 1/60 s per frame.
 //!
-//! - `wind/2000_visible/every_tree_moves`: 2 000 trees in view, motion level of detail off
-//!   (pixel threshold 0). Goal (release, one core — the stage is one system): < 2 ms.
-//! - `wind/2000_visible/shipped_threshold`: the same with the shipped set's threshold.
+//! - `wind/per_tree/SPECIES/ring_offsets` and `.../moved_bounds`: the pure per-instance
+//!   work for one tree of each shipped species (the stage's floor).
+//! - `wind/2000_visible/every_tree_moves`: 2 000 trees in view across the forest from a
+//!   corner, motion level of detail off (pixel threshold 0). Goal (release, one core — the
+//!   stage is one system): < 2 ms.
+//! - `wind/2000_visible/shipped_threshold`: the same view with the shipped set's threshold.
 //!
 //! Then two tables, the shapes of thesis figures 5.8 and 5.9: the stage's cost as the
-//! camera recedes from the forest, and as the springs come to rest after the wind drops.
+//! camera backs away from the forest, and as the springs come to rest after the wind drops.
 //! `cargo bench --no-default-features --bench wind`.
 
 use std::time::Duration;
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy_sherwood::wind::{SpringSet, WindSettings, WindStats};
+use bevy_sherwood::culling::CullShape;
+use bevy_sherwood::wind::{RingOffsetTable, SpringSet, WindSettings, WindStats};
+use bevy_sherwood::wind::{WindRig, associate, moved_bounds, ring_offsets};
 use criterion::{Criterion, criterion_group, criterion_main};
+use std::hint::black_box;
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -42,14 +48,56 @@ fn run(app: &mut App, frames: u32) -> (f32, WindStats) {
     (total / frames as f32, *app.world().resource::<WindStats>())
 }
 
+/// The pure per-instance work, one shipped species at a time: the stage's floor.
+fn per_tree(c: &mut Criterion) {
+    let set_text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/wind/default.wind.ron"
+    ))
+    .unwrap();
+    let set = SpringSet::from_ron_str(&set_text).unwrap();
+    let springs = [
+        Vec3::new(0.08, 0.0, 0.03),
+        Vec3::new(0.06, 0.0, 0.01),
+        Vec3::new(0.04, 0.0, 0.02),
+    ];
+    let mut group = c.benchmark_group("wind/per_tree");
+    for name in ["slender", "broad", "grand"] {
+        let model = common::species(name);
+        let rig = WindRig::new(&model, &associate(&model, &set.rules, springs.len()));
+        let mut offsets = Vec::new();
+        let mut shape = CullShape::from(&model);
+        println!("{name}: {} rings", model.rings.len());
+        group.bench_function(format!("{name}/ring_offsets"), |b| {
+            b.iter(|| {
+                ring_offsets(
+                    &rig,
+                    black_box(&springs),
+                    Quat::from_rotation_y(0.3),
+                    1.1,
+                    0.0,
+                    &mut offsets,
+                );
+            });
+        });
+        group.bench_function(format!("{name}/moved_bounds"), |b| {
+            b.iter(|| moved_bounds(&model, black_box(&offsets), &mut shape));
+        });
+    }
+    group.finish();
+}
+
 fn wind(c: &mut Criterion) {
     let (mut app, size) = common::forest_of(TREES);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
         1.0 / 60.0,
     )));
     let centre = Vec3::new(size / 2.0, 0.0, size / 2.0);
-    let overhead = |height: f32| centre + Vec3::new(0.0, height, 1.0);
-    common::look_from(&mut app, overhead(size * 0.9), centre);
+    // Looking across the forest from outside a corner, 20 m up, `back` × the forest's
+    // side away from it: a walker's view, near trees large and far ones small. From a
+    // quarter of the side back, the whole forest is in view.
+    let corner = |back: f32| Vec3::new(-back * size, 20.0, -back * size);
+    common::look_from(&mut app, corner(0.25), centre);
     common::until_visible(&mut app);
     // Three seconds of wind, so the springs are moving.
     run(&mut app, 180);
@@ -61,8 +109,9 @@ fn wind(c: &mut Criterion) {
         edit_springs(&mut app, |set| set.pixel_threshold = threshold);
         run(&mut app, 2);
         let stats = *app.world().resource::<WindStats>();
+        let rings = app.world().resource::<RingOffsetTable>().offsets.len();
         println!(
-            "{name}: {} candidates, {} moved, {} skipped",
+            "{name}: {} candidates, {} moved, {} skipped; {rings} rings in the forest",
             stats.candidates, stats.moved, stats.skipped
         );
         group.bench_function(name, |b| {
@@ -79,24 +128,24 @@ fn wind(c: &mut Criterion) {
     }
     group.finish();
 
-    // Figure 5.8's shape: the camera rises above the centre, trees shrink on screen and
-    // the motion level of detail leaves more of them still.
+    // Figure 5.8's shape: the camera backs away from the forest, trees shrink on screen
+    // and the motion level of detail leaves more of them still.
     edit_springs(&mut app, |set| set.pixel_threshold = 0.5);
-    println!("\n| camera height / forest side | visible | moved | skipped | stage ms |");
+    println!("\n| camera back / forest side | visible | moved | skipped | stage ms |");
     println!("|---:|---:|---:|---:|---:|");
-    for factor in [0.15, 0.3, 0.6, 1.2, 2.4, 4.8] {
-        common::look_from(&mut app, overhead(size * factor), centre);
+    for back in [0.0, 0.25, 0.5, 1.0, 2.0, 4.0] {
+        common::look_from(&mut app, corner(back), centre);
         run(&mut app, 10);
         let (ms, stats) = run(&mut app, 60);
         println!(
-            "| {factor} | {} | {} | {} | {ms:.3} |",
+            "| {back} | {} | {} | {} | {ms:.3} |",
             stats.candidates, stats.moved, stats.skipped
         );
     }
 
     // Figure 5.9's shape: the wind drops; damped springs come to rest and tree after tree
     // falls below the threshold.
-    common::look_from(&mut app, overhead(size * 0.9), centre);
+    common::look_from(&mut app, corner(0.25), centre);
     run(&mut app, 60);
     edit_springs(&mut app, |set| {
         for spring in &mut set.springs {
@@ -115,5 +164,5 @@ fn wind(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, wind);
+criterion_group!(benches, per_tree, wind);
 criterion_main!(benches);

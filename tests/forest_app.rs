@@ -197,3 +197,70 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
     assert!(table.offsets.iter().all(|o| *o == Vec3::ZERO));
     assert!(app.world().resource::<ForestCulling>().moved.is_empty());
 }
+
+#[test]
+fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_sherwood::wind::{RingOffsetTable, SpringSet, WindSettings, WindStats};
+
+    let (mut app, size) = common::forest_of(600);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(
+        std::time::Duration::from_millis(50),
+    ));
+    // Across the forest from just outside a corner: trees from ~10 m to ~300 m away.
+    let eye = Vec3::new(-5.0, 20.0, -5.0);
+    common::look_from(&mut app, eye, Vec3::new(size / 2.0, 0.0, size / 2.0));
+    common::until_visible(&mut app);
+    // With the shipped half-pixel threshold every tip of this forest moves a visible
+    // amount; a coarser threshold puts the boundary inside it.
+    let set = app.world().resource::<WindSettings>().sets[0].clone();
+    app.world_mut()
+        .resource_mut::<Assets<SpringSet>>()
+        .get_mut(&set)
+        .unwrap()
+        .pixel_threshold = 6.0;
+    for _ in 0..40 {
+        app.update(); // two seconds of wind
+    }
+    let stats = *app.world().resource::<WindStats>();
+    assert!(stats.moved > 0 && stats.skipped > 0, "{stats:?}");
+    let table = app.world().resource::<RingOffsetTable>().clone();
+    assert_eq!(table.moved, stats.moved);
+    let state = app
+        .world_mut()
+        .query::<&ForestState>()
+        .single(app.world())
+        .unwrap()
+        .clone();
+    let (mut moved, mut still) = (Vec::new(), Vec::new());
+    let culling = app.world().resource::<ForestCulling>();
+    for (i, entity) in state.instances.iter().enumerate() {
+        if culling.result.visibility[i] == bevy_sherwood::culling::InstanceVisibility::Invisible {
+            continue;
+        }
+        let distance = app
+            .world()
+            .get::<GlobalTransform>(*entity)
+            .unwrap()
+            .translation()
+            .distance(eye);
+        let offsets = &table.offsets[table.starts[i] as usize..table.starts[i + 1] as usize];
+        if culling.moved.get(i).is_some() {
+            moved.push(distance);
+        } else {
+            assert!(
+                offsets.iter().all(|o| *o == Vec3::ZERO),
+                "still tree {i} moved"
+            );
+            still.push(distance);
+        }
+    }
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    assert_eq!(moved.len(), stats.moved as usize);
+    assert!(
+        mean(&moved) < 0.5 * mean(&still),
+        "moved trees are {} m away on average, still ones {} m",
+        mean(&moved),
+        mean(&still)
+    );
+}

@@ -66,8 +66,7 @@ fn root_stays_lengths_are_kept_and_angles_limited() {
         [Vec3::ZERO, Vec3::new(0.0, 0.0, 50.0)],
     ] {
         ring_offsets(
-            &m,
-            &motions,
+            &WindRig::new(&m, &motions),
             &springs,
             Quat::IDENTITY,
             1.0,
@@ -114,7 +113,14 @@ fn every_tree_bends_the_same_world_direction() {
     for head in [0.0_f32, 90.0, 200.0] {
         let rotation = Quat::from_rotation_y(head.to_radians());
         let mut offsets = Vec::new();
-        ring_offsets(&m, &motions, &wind, rotation, 1.3, 0.0, &mut offsets);
+        ring_offsets(
+            &WindRig::new(&m, &motions),
+            &wind,
+            rotation,
+            1.3,
+            0.0,
+            &mut offsets,
+        );
         let world = rotation * offsets[tip];
         assert!(
             world.x > 0.0 && world.x > 3.0 * world.z.abs(),
@@ -139,17 +145,30 @@ fn small_movements_accumulate_until_they_show() {
             .count()
     };
     let (mut exact, mut thresholded, mut nothing) = (Vec::new(), Vec::new(), Vec::new());
-    ring_offsets(&m, &motions, &wind, Quat::IDENTITY, 1.0, 0.0, &mut exact);
     ring_offsets(
-        &m,
-        &motions,
+        &WindRig::new(&m, &motions),
+        &wind,
+        Quat::IDENTITY,
+        1.0,
+        0.0,
+        &mut exact,
+    );
+    ring_offsets(
+        &WindRig::new(&m, &motions),
         &wind,
         Quat::IDENTITY,
         1.0,
         0.05,
         &mut thresholded,
     );
-    ring_offsets(&m, &motions, &wind, Quat::IDENTITY, 1.0, 1e9, &mut nothing);
+    ring_offsets(
+        &WindRig::new(&m, &motions),
+        &wind,
+        Quat::IDENTITY,
+        1.0,
+        1e9,
+        &mut nothing,
+    );
     assert!(
         moving(&thresholded) < moving(&exact),
         "{} vs {}",
@@ -170,8 +189,7 @@ fn moved_bounds_follow_the_rings() {
     let motions = associate(&m, &rules(), 2);
     let mut offsets = Vec::new();
     ring_offsets(
-        &m,
-        &motions,
+        &WindRig::new(&m, &motions),
         &[Vec3::new(5.0, 0.0, 0.0); 2],
         Quat::IDENTITY,
         1.0,
@@ -227,4 +245,27 @@ fn shipped_spring_set_loads_and_bad_ones_are_refused() {
     );
     assert!(error("(springz: [])").contains("springz"));
     assert_eq!(error("(springs: [])"), "springs: needs at least one spring");
+}
+
+#[test]
+fn the_rig_reach_bounds_how_far_any_ring_moves() {
+    let m = model();
+    let rig = WindRig::new(&m, &associate(&m, &rules(), 2));
+    assert!(rig.reach() > 1.0, "several moving rings on a path");
+    let mut offsets = Vec::new();
+    for push in [
+        Vec3::new(0.01, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, -0.02),
+        Vec3::new(0.01, 0.01, 0.005),
+    ] {
+        ring_offsets(&rig, &[push; 2], Quat::IDENTITY, 1.0, 0.0, &mut offsets);
+        let farthest = offsets.iter().map(|o| o.length()).fold(0.0, f32::max);
+        let bound = rig.reach() * push.length();
+        assert!(farthest <= 1.05 * bound, "{farthest} > {bound}");
+        // Not a loose bound either for a sideways push: motion LOD would keep moving
+        // trees whose motion cannot be seen.
+        if push.y == 0.0 {
+            assert!(farthest >= bound / 3.0, "{farthest} ≪ {bound}");
+        }
+    }
 }

@@ -15,9 +15,11 @@ use super::spring::SpringDesc;
 pub struct SpringSet {
     /// Fixed simulation step, seconds.
     pub time_step: f32,
-    /// An instance whose largest projected spring displacement is below this many pixels
-    /// is not moved at all (motion level of detail); also the per-ring threshold below
-    /// which movement accumulates along a path instead of being applied.
+    /// An instance whose farthest-moving ring would move less than this many pixels on
+    /// screen (its largest spring displacement × its rig's [`reach`](super::WindRig::reach),
+    /// projected at its distance) is not moved at all (motion level of detail); also the
+    /// per-ring threshold below which movement accumulates along a path instead of being
+    /// applied.
     pub pixel_threshold: f32,
     /// The springs; several with slightly different parameters give variety.
     pub springs: Vec<SpringDesc>,

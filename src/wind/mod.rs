@@ -8,6 +8,6 @@ mod plugin;
 mod spring;
 
 pub use asset::{SpringSet, SpringSetError, SpringSetLoader, WindPlugin};
-pub use motion::{AssociationRule, RingMotion, associate, moved_bounds, ring_offsets};
+pub use motion::{AssociationRule, RingMotion, WindRig, associate, moved_bounds, ring_offsets};
 pub use plugin::{RingOffsetTable, WindSettings, WindStats};
 pub use spring::{FixedStepper, GustDesc, Spring, SpringDesc, WindDesc};

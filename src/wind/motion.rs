@@ -87,12 +87,7 @@ pub fn associate(
                 max_angle: r.max_angle.clamp(0.0, 180.0).to_radians(),
                 start_of_motion,
             },
-            None => RingMotion {
-                spring: None,
-                influence: 0.0,
-                max_angle: 0.0,
-                start_of_motion: false,
-            },
+            None => RingMotion::default(),
         });
     }
     motions
@@ -108,63 +103,209 @@ fn has_moving_ancestor(motions: &[RingMotion], model: &TreeModel, mut ring: u32)
     false
 }
 
-/// Computes every ring's offset from rest, in the model's space, for one instance.
+/// What the motion of one tree type under one spring set needs per ring, in ring order:
+/// built once from [`associate`]'s result, then used for every instance of the type.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WindRig {
+    rings: Vec<RigRing>,
+    reach: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct RigRing {
+    /// [`NO_RING`] for a root ring.
+    parent: u32,
+    /// [`NO_SPRING`] for a ring that only carries its parent's offset.
+    spring: u32,
+    /// Unit direction from the parent's centre to this ring's, at rest.
+    from: Vec3,
+    /// Distance from the parent's centre, at rest.
+    length: f32,
+    influence: f32,
+    cos_max_angle: f32,
+    sin_max_angle: f32,
+}
+
+const NO_SPRING: u32 = u32::MAX;
+
+impl WindRig {
+    /// The rig of `model` with its rings associated as `motions` says (one entry per
+    /// ring, as [`associate`] returns). A ring at its parent's centre has no direction to
+    /// bend and does not move on its own.
+    pub fn new(model: &TreeModel, motions: &[RingMotion]) -> Self {
+        let rings = model
+            .rings
+            .iter()
+            .enumerate()
+            .map(|(r, ring)| {
+                let motion = motions.get(r).copied().unwrap_or_default();
+                let rest = model
+                    .rings
+                    .get(ring.parent as usize)
+                    .map_or(Vec3::ZERO, |p| ring.center - p.center);
+                let length = rest.length();
+                let from = rest.try_normalize();
+                let (sin_max_angle, cos_max_angle) = motion.max_angle.sin_cos();
+                RigRing {
+                    parent: ring.parent,
+                    spring: match (motion.spring, from) {
+                        (Some(s), Some(_)) if !ring.is_root() => s,
+                        _ => NO_SPRING,
+                    },
+                    from: from.unwrap_or(Vec3::ZERO),
+                    length,
+                    influence: motion.influence,
+                    cos_max_angle,
+                    sin_max_angle,
+                }
+            })
+            .collect::<Vec<RigRing>>();
+        // Each moving ring adds up to its influence × the push to what it carries, so a
+        // ring moves at most the sum of the influences on its path × the largest push.
+        let mut path_influence = vec![0.0_f32; rings.len()];
+        for (r, ring) in rings.iter().enumerate() {
+            let carried = path_influence
+                .get(ring.parent as usize)
+                .copied()
+                .unwrap_or(0.0);
+            let own = if ring.spring == NO_SPRING {
+                0.0
+            } else {
+                ring.influence
+            };
+            path_influence[r] = carried + own;
+        }
+        let reach = path_influence.iter().copied().fold(0.0, f32::max);
+        Self { rings, reach }
+    }
+
+    /// How far the farthest-moving ring moves per unit of spring displacement (small
+    /// displacements, before the angle limits): the sum of influences along the longest
+    /// moving path. Motion LOD multiplies the largest spring displacement by it — a tip
+    /// twenty rings up moves about twenty times as far as one spring's displacement.
+    pub fn reach(&self) -> f32 {
+        self.reach
+    }
+
+    /// Rings of the model it was built for.
+    pub fn len(&self) -> usize {
+        self.rings.len()
+    }
+
+    /// Built for a model without rings.
+    pub fn is_empty(&self) -> bool {
+        self.rings.is_empty()
+    }
+}
+
+impl Default for RingMotion {
+    fn default() -> Self {
+        Self {
+            spring: None,
+            influence: 0.0,
+            max_angle: 0.0,
+            start_of_motion: false,
+        }
+    }
+}
+
+/// Computes every ring's offset from rest, in the model's space, for one instance of the
+/// tree type `rig` was built for.
 ///
 /// `springs` are the spring displacements in world space; `rotation` and `scale` are the
 /// instance's, so every tree bends the same world direction and a larger tree responds
-/// less. A ring's own movement smaller than `threshold` (model units) is not applied but
-/// accumulated along its path until it is — the thesis' fix for jerky tips; 0 applies
-/// everything. Root rings never move.
+/// less. A ring pivots rigidly on its parent towards its spring's push (scaled by its
+/// influence) by at most its maximum angle; a ring's own movement smaller than
+/// `threshold` (model units) is not applied but accumulated along its path until it is
+/// — the thesis' fix for jerky tips; 0 applies everything. Root rings never move.
 pub fn ring_offsets(
-    model: &TreeModel,
-    motions: &[RingMotion],
+    rig: &WindRig,
     springs: &[Vec3],
     rotation: Quat,
     scale: f32,
     threshold: f32,
     offsets: &mut Vec<Vec3>,
 ) {
-    let inverse = rotation.inverse();
     let scale = if scale.is_finite() && scale > 0.0 {
         scale
     } else {
         1.0
     };
+    // Springs are few and rings many: bring each spring into model space once.
+    let to_model = rotation.inverse() / scale;
+    let mut local = [Vec3::ZERO; LOCAL_SPRINGS];
+    let local_springs: Vec<Vec3>;
+    let local: &[Vec3] = if springs.len() <= LOCAL_SPRINGS {
+        for (l, s) in local.iter_mut().zip(springs) {
+            *l = to_model_space(to_model, *s);
+        }
+        &local[..springs.len()]
+    } else {
+        local_springs = springs
+            .iter()
+            .map(|s| to_model_space(to_model, *s))
+            .collect();
+        &local_springs
+    };
+    let threshold_squared = threshold.max(0.0).powi(2);
+    let n = rig.rings.len();
+    // The second half holds each ring's movement not yet applied (below the threshold),
+    // so that no allocation is made per instance; it is cut off at the end.
     offsets.clear();
-    offsets.resize(model.rings.len(), Vec3::ZERO);
-    let mut pending = vec![Vec3::ZERO; model.rings.len()];
-    for (r, ring) in model.rings.iter().enumerate() {
-        if ring.is_root() {
+    offsets.resize(2 * n, Vec3::ZERO);
+    let (applied, pending) = offsets.split_at_mut(n);
+    for (r, ring) in rig.rings.iter().enumerate() {
+        let p = ring.parent as usize;
+        if p >= n {
             continue;
         }
-        let p = ring.parent as usize;
-        let carried = offsets[p];
-        let motion = motions[r];
-        let own = match motion.spring.and_then(|s| springs.get(s as usize)) {
-            Some(&displacement) if displacement.is_finite() => {
-                let rest = ring.center - model.rings[p].center;
-                let length = rest.length();
-                let push = inverse * displacement / scale * motion.influence;
-                match (rest.try_normalize(), (rest + push).try_normalize()) {
-                    (Some(from), Some(to)) => {
-                        let angle = from.angle_between(to).min(motion.max_angle);
-                        let axis = from.cross(to).try_normalize();
-                        let bent = axis.map_or(from, |a| Quat::from_axis_angle(a, angle) * from);
-                        bent * length - rest
-                    }
-                    _ => Vec3::ZERO,
-                }
-            }
+        let own = match local.get(ring.spring as usize) {
+            Some(&push) if push.is_finite() => bend(ring, push * ring.influence),
             _ => Vec3::ZERO,
         };
         let accumulated = pending[p] + own;
-        if accumulated.length() >= threshold.max(0.0) {
-            offsets[r] = carried + accumulated;
+        if accumulated.length_squared() >= threshold_squared {
+            applied[r] = applied[p] + accumulated;
         } else {
-            offsets[r] = carried;
+            applied[r] = applied[p];
             pending[r] = accumulated;
         }
     }
+    offsets.truncate(n);
+}
+
+/// Spring sets with at most this many springs are moved to model space on the stack.
+const LOCAL_SPRINGS: usize = 16;
+
+fn to_model_space(to_model: Quat, displacement: Vec3) -> Vec3 {
+    if displacement.is_finite() {
+        to_model * displacement
+    } else {
+        Vec3::NAN
+    }
+}
+
+/// How far a ring moves when `push` bends its segment on the parent, rigidly (its length
+/// kept) and by at most its limit angle. Within the limit the segment simply points along
+/// `rest + push`; past it, it turns by the limit towards that direction — no
+/// trigonometry per ring.
+fn bend(ring: &RigRing, push: Vec3) -> Vec3 {
+    let rest = ring.from * ring.length;
+    let Some(to) = (rest + push).try_normalize() else {
+        return Vec3::ZERO;
+    };
+    let cos = ring.from.dot(to);
+    let direction = if cos >= ring.cos_max_angle {
+        to
+    } else {
+        // Turned past the limit: the limit's angle within the plane of `from` and `to`
+        // (when they are opposite there is no such plane and the segment stays).
+        match (to - ring.from * cos).try_normalize() {
+            Some(across) => ring.from * ring.cos_max_angle + across * ring.sin_max_angle,
+            None => ring.from,
+        }
+    };
+    direction * ring.length - rest
 }
 
 /// The culling shape of a moved instance (model space), written into `out`: a sphere per

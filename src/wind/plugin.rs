@@ -7,7 +7,7 @@ use bevy::prelude::*;
 use super::asset::SpringSet;
 use std::collections::HashMap;
 
-use super::motion::{RingMotion, associate, moved_bounds, ring_offsets};
+use super::motion::{WindRig, associate, moved_bounds, ring_offsets};
 use super::spring::{FixedStepper, Spring};
 use crate::SherwoodSystems;
 use crate::culling::{ForestCulling, InstanceVisibility};
@@ -134,7 +134,7 @@ fn move_rings(
     views: Query<&LodView>,
     mut table: ResMut<RingOffsetTable>,
     mut stats: ResMut<WindStats>,
-    mut associations: Local<HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), Vec<RingMotion>>>,
+    mut rigs: Local<HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), WindRig>>,
 ) {
     let start_time = std::time::Instant::now();
     let table = &mut *table;
@@ -183,28 +183,27 @@ fn move_rings(
         counts.candidates += 1;
         displacements.clear();
         displacements.extend(springs.iter().map(|s| s.displacement));
-        // Motion LOD: skip the tree when its largest spring displacement projects below
-        // the threshold.
+        // Association depends only on the tree type and the set: computed once.
+        let set_id = settings.sets[instance.motion as usize].id();
+        let rig = rigs
+            .entry((instance.model.id(), set_id))
+            .or_insert_with(|| WindRig::new(model, &associate(model, &set.rules, springs.len())));
+        // Motion LOD: skip the tree when its farthest-moving ring (the largest spring
+        // displacement times the rig's reach) projects below the threshold.
         let (_, rotation, translation) = transform.to_scale_rotation_translation();
         let pixels_per_unit =
             view.map(|v| v.focal_pixels / v.position.distance(translation).max(1e-3));
         if let Some(ppu) = pixels_per_unit {
             let largest = displacements.iter().map(|d| d.length()).fold(0.0, f32::max);
-            if largest * ppu < set.pixel_threshold {
+            if largest * rig.reach() * ppu < set.pixel_threshold {
                 counts.skipped += 1;
                 continue;
             }
         }
         let threshold =
             pixels_per_unit.map_or(0.0, |ppu| set.pixel_threshold / ppu / instance.scale);
-        // Association depends only on the tree type and the set: computed once.
-        let set_id = settings.sets[instance.motion as usize].id();
-        let motions = associations
-            .entry((instance.model.id(), set_id))
-            .or_insert_with(|| associate(model, &set.rules, springs.len()));
         ring_offsets(
-            model,
-            motions,
+            rig,
             &displacements,
             rotation,
             instance.scale,
