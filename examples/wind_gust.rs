@@ -17,7 +17,7 @@ use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::time::TimeUpdateStrategy;
-use bevy_sherwood::ecosystem::EcosystemDesc;
+use bevy_sherwood::ecosystem::{EcosystemDesc, ForestTerrain};
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::wind::{GustDesc, SpringDesc, SpringSet, WindDesc, WindSettings};
 
@@ -51,9 +51,17 @@ fn main() -> AppExit {
         eprintln!("wind_gust: the forest never appeared");
         return AppExit::error();
     };
-    let eye = tree + Vec3::new(-14.0, 3.0, -22.0);
-    let target = tree + Vec3::new(0.0, 5.0, 0.0);
+    // Across the wind (it blows along +x), from above the ground wherever the eye lands
+    // and a little above the crowns, so the bending shows and nothing sways into the lens.
     let world = app.world_mut();
+    let mut eye = tree + Vec3::new(0.0, 0.0, -28.0);
+    let ground = world
+        .query::<&ForestTerrain>()
+        .iter(world)
+        .next()
+        .map_or(tree.y, |t| t.terrain.height_at(eye.x, eye.z));
+    eye.y = ground.max(tree.y) + 9.0;
+    let target = tree + Vec3::new(0.0, 4.5, 0.0);
     let mut cameras = world.query_filtered::<&mut Transform, With<Camera3d>>();
     for mut transform in cameras.iter_mut(world) {
         *transform = Transform::from_translation(eye).looking_at(target, Vec3::Y);

@@ -9,9 +9,14 @@ use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 
 /// Bevy's default plugins with no window (and no winit), pipelines compiled before the
-/// frame that needs them, and the render world updated on the calling thread.
+/// frame that needs them, the render world updated on the calling thread, and assets read
+/// from the crate's `assets/` wherever the binary is started.
 pub fn windowless_plugins() -> PluginGroupBuilder {
     DefaultPlugins
+        .set(AssetPlugin {
+            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
+            ..default()
+        })
         .set(WindowPlugin {
             primary_window: None,
             exit_condition: ExitCondition::DontExit,
