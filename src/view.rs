@@ -19,6 +19,9 @@ pub struct LodView {
     pub forward: Vec3,
     /// Pixels per world unit at unit distance (`viewport height / (2·tan(fov / 2))`).
     pub focal_pixels: f32,
+    /// Pixels in the viewport (width × height): the most any one primitive can cover, so
+    /// the cost of something at the camera stays finite. `f32::INFINITY` when unknown.
+    pub viewport_pixels: f32,
 }
 
 impl LodView {
@@ -69,6 +72,7 @@ fn update_lod_views(
             position: transform.translation(),
             forward: transform.forward().as_vec3(),
             focal_pixels: size.y as f32 / (2.0 * (perspective.fov * 0.5).tan()).max(1e-6),
+            viewport_pixels: size.x as f32 * size.y as f32,
         };
         if current != Some(&view) {
             commands.entity(entity).insert(view);

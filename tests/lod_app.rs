@@ -30,6 +30,7 @@ fn app() -> App {
             position: EYE,
             forward: (LOOK_AT - EYE).normalize(),
             focal_pixels: 540.0 / (2.0 * (0.8f32 * 0.5).tan()),
+            viewport_pixels: 540.0 * 540.0,
         },
     ));
     for _ in 0..3000 {

@@ -189,3 +189,44 @@ fn a_trunk_too_far_to_see_is_still_one_thin_line() {
     assert_eq!(list.trunk_lines[0].width, 1);
     assert_eq!(list.trunk_lines[0].segments.len(), 1);
 }
+
+#[test]
+fn a_tree_at_the_camera_costs_at_most_a_screenful_per_primitive() {
+    // Seen from inside (depth at the clamp), a leaf triangle projects to billions of
+    // pixels; it can fill the screen, not more.
+    let model = model();
+    let viewport = 960.0 * 540.0;
+    let unbounded = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    let costs = unbounded.clone().within_viewport(viewport);
+    let at_camera = bevy_sherwood::budget::MIN_DEPTH;
+    let v = view(at_camera);
+    let g = groups(&model, at_camera);
+    let mut list = TreeDrawList::default();
+    let full = leaves(&model, &v, &costs, LeafMethod::Full, &g, 0.0, &mut list);
+    let trunk = trunk_tc(&model, &v, &costs, f32::INFINITY, &mut list);
+    let screenful = |triangles: usize| costs.triangles(triangles as u32, viewport);
+    assert!(full.cost.is_finite() && trunk.cost.is_finite());
+    assert!(full.cost <= screenful(model.leaf_triangle_count()) * 1.0001);
+    assert!(trunk.cost <= screenful(model.trunk_triangle_count()) * 1.0001);
+    let uncapped = leaves(&model, &v, &unbounded, LeafMethod::Full, &g, 0.0, &mut list);
+    assert!(
+        uncapped.cost > 100.0 * full.cost,
+        "the cap matters here: {} vs {}",
+        uncapped.cost,
+        full.cost
+    );
+    // Far away, the cap changes nothing.
+    let far = view(80.0);
+    let g = groups(&model, 80.0);
+    let capped = leaves(&model, &far, &costs, LeafMethod::Full, &g, 0.0, &mut list);
+    let plain = leaves(
+        &model,
+        &far,
+        &unbounded,
+        LeafMethod::Full,
+        &g,
+        0.0,
+        &mut list,
+    );
+    assert_eq!(capped, plain);
+}

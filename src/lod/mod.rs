@@ -296,6 +296,8 @@ struct VisibleTree {
 /// The frame's working state, kept between frames to reuse its allocations.
 #[derive(Resource, Default)]
 struct LodFrame {
+    /// The view's pixel count: the most one primitive can cover.
+    viewport_pixels: f32,
     trees: Vec<VisibleTree>,
     groups: Vec<VisibleGroup>,
     objects: Vec<Object>,
@@ -394,6 +396,7 @@ fn value_objects(
         frame.ranked_version = Some(version.0);
     }
     let projection = view.projection();
+    frame.viewport_pixels = view.viewport_pixels;
     let value_of = |area: f32, at: Vec3, importance: f32| {
         budget.value.value(&ValueInputs {
             area,
@@ -548,7 +551,8 @@ fn hand_out_time(
     } else {
         1.0
     };
-    let costs = PrimitiveCosts::from_calibration(calibration, factor);
+    let costs = PrimitiveCosts::from_calibration(calibration, factor)
+        .within_viewport(frame.viewport_pixels);
     let logic = match (cost_model.online, cost_model.overhead) {
         (true, Some(overhead)) => overhead,
         _ => crate::cost::logic_time(

@@ -42,6 +42,9 @@ pub struct PrimitiveCosts {
     pub point: Vec<f32>,
     /// Per covered pixel of points, by size.
     pub point_pixel: Vec<f32>,
+    /// The most pixels one primitive can cover: the viewport's. Something at the camera
+    /// projects to millions of pixels per triangle, but draws at most the screen.
+    pub max_pixels: f32,
 }
 
 impl PrimitiveCosts {
@@ -83,7 +86,17 @@ impl PrimitiveCosts {
                 .iter()
                 .map(|c| clean(c.per_pixel))
                 .collect(),
+            max_pixels: f32::INFINITY,
         }
+    }
+
+    /// The same costs with each primitive's coverage capped at `viewport_pixels` (ignored
+    /// unless positive).
+    pub fn within_viewport(mut self, viewport_pixels: f32) -> Self {
+        if viewport_pixels > 0.0 {
+            self.max_pixels = viewport_pixels;
+        }
+        self
     }
 
     fn pick(values: &[f32], size: u32) -> f32 {
@@ -93,13 +106,13 @@ impl PrimitiveCosts {
 
     /// `count` triangles of `area` pixels each.
     pub fn triangles(&self, count: u32, area: f32) -> f32 {
-        count as f32 * (self.triangle + self.triangle_pixel * area)
+        count as f32 * (self.triangle + self.triangle_pixel * area.min(self.max_pixels))
     }
 
     /// `count` lines `width` pixels wide, `length` pixels long in total.
     pub fn lines(&self, width: u32, count: u32, length: f32) -> f32 {
-        count as f32 * Self::pick(&self.line, width)
-            + Self::pick(&self.line_pixel, width) * length * width as f32
+        let covered = (length * width as f32).min(count as f32 * self.max_pixels);
+        count as f32 * Self::pick(&self.line, width) + Self::pick(&self.line_pixel, width) * covered
     }
 
     /// `count` points of `size` pixels.

@@ -107,6 +107,7 @@ pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
             position: eye,
             forward: (target - eye).normalize(),
             focal_pixels: 540.0 / (2.0 * (fov * 0.5).tan()),
+            viewport_pixels: 540.0 * 540.0,
         },
     );
     let world = app.world_mut();
