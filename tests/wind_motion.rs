@@ -144,31 +144,11 @@ fn small_movements_accumulate_until_they_show() {
             })
             .count()
     };
+    let rig = WindRig::new(&m, &motions);
     let (mut exact, mut thresholded, mut nothing) = (Vec::new(), Vec::new(), Vec::new());
-    ring_offsets(
-        &WindRig::new(&m, &motions),
-        &wind,
-        Quat::IDENTITY,
-        1.0,
-        0.0,
-        &mut exact,
-    );
-    ring_offsets(
-        &WindRig::new(&m, &motions),
-        &wind,
-        Quat::IDENTITY,
-        1.0,
-        0.05,
-        &mut thresholded,
-    );
-    ring_offsets(
-        &WindRig::new(&m, &motions),
-        &wind,
-        Quat::IDENTITY,
-        1.0,
-        1e9,
-        &mut nothing,
-    );
+    ring_offsets(&rig, &wind, Quat::IDENTITY, 1.0, 0.0, &mut exact);
+    ring_offsets(&rig, &wind, Quat::IDENTITY, 1.0, 0.05, &mut thresholded);
+    ring_offsets(&rig, &wind, Quat::IDENTITY, 1.0, 1e9, &mut nothing);
     assert!(
         moving(&thresholded) < moving(&exact),
         "{} vs {}",
@@ -267,5 +247,20 @@ fn the_rig_reach_bounds_how_far_any_ring_moves() {
         if push.y == 0.0 {
             assert!(farthest >= bound / 3.0, "{farthest} ≪ {bound}");
         }
+    }
+}
+
+#[test]
+fn a_tree_twice_as_large_responds_as_to_half_the_wind() {
+    let m = model();
+    let rig = WindRig::new(&m, &associate(&m, &rules(), 2));
+    let wind = Vec3::new(0.3, 0.0, 0.1);
+    let rotation = Quat::from_rotation_y(0.7);
+    let (mut large, mut half) = (Vec::new(), Vec::new());
+    ring_offsets(&rig, &[wind; 2], rotation, 2.0, 0.0, &mut large);
+    ring_offsets(&rig, &[wind / 2.0; 2], rotation, 1.0, 0.0, &mut half);
+    assert!(large.iter().any(|o| o.length() > 1e-3), "something moves");
+    for (r, (a, b)) in large.iter().zip(&half).enumerate() {
+        assert!((*a - *b).length() <= 1e-5, "ring {r}: {a} vs {b}");
     }
 }

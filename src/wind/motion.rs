@@ -232,18 +232,18 @@ pub fn ring_offsets(
         1.0
     };
     // Springs are few and rings many: bring each spring into model space once.
-    let to_model = rotation.inverse() / scale;
+    let to_model = rotation.inverse();
     let mut local = [Vec3::ZERO; LOCAL_SPRINGS];
     let local_springs: Vec<Vec3>;
     let local: &[Vec3] = if springs.len() <= LOCAL_SPRINGS {
         for (l, s) in local.iter_mut().zip(springs) {
-            *l = to_model_space(to_model, *s);
+            *l = to_model_space(to_model, scale, *s);
         }
         &local[..springs.len()]
     } else {
         local_springs = springs
             .iter()
-            .map(|s| to_model_space(to_model, *s))
+            .map(|s| to_model_space(to_model, scale, *s))
             .collect();
         &local_springs
     };
@@ -277,9 +277,12 @@ pub fn ring_offsets(
 /// Spring sets with at most this many springs are moved to model space on the stack.
 const LOCAL_SPRINGS: usize = 16;
 
-fn to_model_space(to_model: Quat, displacement: Vec3) -> Vec3 {
+/// A world-space displacement in an instance's model space: `to_model` is the inverse of
+/// its rotation, `scale` its scale. (Dividing the quaternion by the scale instead would
+/// divide the result by the scale's square: rotating by a quaternion is quadratic in it.)
+fn to_model_space(to_model: Quat, scale: f32, displacement: Vec3) -> Vec3 {
     if displacement.is_finite() {
-        to_model * displacement
+        to_model * displacement / scale
     } else {
         Vec3::NAN
     }
