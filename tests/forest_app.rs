@@ -264,3 +264,38 @@ fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
         mean(&still)
     );
 }
+
+#[test]
+fn edited_association_rules_take_effect_on_the_next_frame() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_sherwood::wind::{RingOffsetTable, SpringSet, WindSettings};
+
+    let (mut app, size) = common::forest_of(60);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(
+        std::time::Duration::from_millis(50),
+    ));
+    let eye = Vec3::new(-5.0, 20.0, -5.0);
+    common::look_from(&mut app, eye, Vec3::new(size / 2.0, 0.0, size / 2.0));
+    common::until_visible(&mut app);
+    for _ in 0..40 {
+        app.update(); // two seconds of wind
+    }
+    let moves = |app: &App| {
+        let table = app.world().resource::<RingOffsetTable>();
+        table.offsets.iter().any(|o| *o != Vec3::ZERO)
+    };
+    assert!(moves(&app));
+    // Rings follow 0% of their spring from now on.
+    let set = app.world().resource::<WindSettings>().sets[0].clone();
+    for rule in &mut app
+        .world_mut()
+        .resource_mut::<Assets<SpringSet>>()
+        .get_mut(&set)
+        .unwrap()
+        .rules
+    {
+        rule.influence = 0.0;
+    }
+    app.update();
+    assert!(!moves(&app), "the rings still follow the old rules");
+}

@@ -12,7 +12,7 @@ use super::spring::{FixedStepper, Spring};
 use crate::SherwoodSystems;
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::ecosystem::TreeInstance;
-use crate::tree::TreeModel;
+use crate::tree::{TreeModel, TreeModelsVersion};
 use crate::view::LodView;
 
 /// Wind configuration. Changing it at run time takes effect on the next frame.
@@ -55,8 +55,9 @@ pub struct WindStats {
     pub candidates: u32,
     /// Instances moved.
     pub moved: u32,
-    /// Candidates left still by the motion level of detail (their largest spring
-    /// displacement projects below the set's pixel threshold).
+    /// Candidates left still by the motion level of detail (their farthest ring's motion,
+    /// the largest spring displacement × the rig's reach, projects below the set's pixel
+    /// threshold).
     pub skipped: u32,
     /// Time of the per-instance work (ring offsets and moved bounds), milliseconds;
     /// stepping the springs themselves (a few per set) is not included.
@@ -74,6 +75,7 @@ pub(super) fn build(app: &mut App) {
         .init_resource::<WindState>()
         .init_resource::<RingOffsetTable>()
         .init_resource::<WindStats>()
+        .init_resource::<TreeModelsVersion>()
         .add_systems(Startup, load_default_set)
         .add_systems(
             PostUpdate,
@@ -134,9 +136,15 @@ fn move_rings(
     views: Query<&LodView>,
     mut table: ResMut<RingOffsetTable>,
     mut stats: ResMut<WindStats>,
+    version: Res<TreeModelsVersion>,
     mut rigs: Local<HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), WindRig>>,
 ) {
     let start_time = std::time::Instant::now();
+    // A rig is derived from a tree model and a set's rules: an edited (hot-reloaded) one
+    // must not keep moving its rings the old way.
+    if sets.is_changed() || version.is_changed() {
+        rigs.clear();
+    }
     let table = &mut *table;
     table.offsets.clear();
     table.starts.clear();
