@@ -27,8 +27,6 @@ fi
 RAW=results/raw
 mkdir -p "$RAW"
 target_dir=${CARGO_TARGET_DIR:-target}
-# Bevy finds the assets folder through this when the binary is run directly.
-export BEVY_ASSET_ROOT="$PWD"
 
 cargo build --release --example forest --example results
 forest="$target_dir/release/examples/forest"

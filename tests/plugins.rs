@@ -77,3 +77,31 @@ fn plugin_group_can_leave_a_plugin_out() {
     app.update();
     assert!(!app.is_plugin_added::<SherwoodCorePlugin>());
 }
+
+#[test]
+fn calibrations_are_looked_for_in_the_apps_asset_folder() {
+    use bevy_sherwood::lod::CalibrationDir;
+    let folder = std::env::temp_dir().join("sherwood-assets-elsewhere");
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: folder.to_string_lossy().into_owned(),
+            ..default()
+        },
+        SherwoodPlugins,
+    ));
+    assert_eq!(
+        app.world().resource::<CalibrationDir>().0,
+        folder.join("calibration")
+    );
+    // One inserted first is kept.
+    let mine = CalibrationDir(std::env::temp_dir().join("mine"));
+    let mut app = App::new();
+    app.insert_resource(mine.clone()).add_plugins((
+        MinimalPlugins,
+        AssetPlugin::default(),
+        SherwoodPlugins,
+    ));
+    assert_eq!(*app.world().resource::<CalibrationDir>(), mine);
+}

@@ -120,9 +120,10 @@ pub struct LoadCalibration;
 /// Where the cost model's [`Calibration`] comes from. Changing it reloads.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
 pub enum CalibrationChoice {
-    /// The `*.calibration.ron` in `assets/calibration/` that names the adapter the app
-    /// renders with (and its driver, preferred); with none, [`Calibration::default`] and
-    /// one warning. Without the `render` feature there is no adapter: the default.
+    /// The `*.calibration.ron` in the [`CalibrationDir`] (`assets/calibration/` by
+    /// default) that names the adapter the app renders with (and its driver, preferred);
+    /// with none, [`Calibration::default`] and one warning. Without the `render` feature
+    /// there is no adapter: the default.
     #[default]
     Adapter,
     /// This file (a path as given, relative to the working directory); when it cannot be
@@ -132,12 +133,30 @@ pub enum CalibrationChoice {
     Keep,
 }
 
-/// The directory searched for calibrations by [`CalibrationChoice::Adapter`]: the Bevy
-/// asset root's `assets/calibration`.
-pub fn calibration_dir() -> std::path::PathBuf {
-    bevy::asset::io::file::FileAssetReader::get_base_path()
-        .join("assets")
-        .join("calibration")
+/// The directory [`CalibrationChoice::Adapter`] searches for calibrations, and where a
+/// calibration run writes by default: `calibration/` in the app's asset folder — Bevy's
+/// `AssetPlugin::file_path`, resolved as Bevy resolves it, so calibrations are found
+/// wherever the tree species are. [`LodPlugin`] inserts it unless one is already there.
+#[derive(Resource, Clone, Debug, PartialEq, Eq)]
+pub struct CalibrationDir(pub std::path::PathBuf);
+
+impl CalibrationDir {
+    /// `calibration/` in the asset folder `file_path` (absolute, or relative to Bevy's
+    /// base path, as `AssetPlugin::file_path` is).
+    pub fn in_asset_folder(file_path: &str) -> Self {
+        Self(
+            bevy::asset::io::file::FileAssetReader::get_base_path()
+                .join(file_path)
+                .join("calibration"),
+        )
+    }
+}
+
+impl Default for CalibrationDir {
+    /// In the default asset folder.
+    fn default() -> Self {
+        Self::in_asset_folder(&AssetPlugin::default().file_path)
+    }
 }
 
 impl Default for FrameBudget {
@@ -252,6 +271,15 @@ pub struct LodPlugin;
 
 impl Plugin for LodPlugin {
     fn build(&self, app: &mut App) {
+        if !app.world().contains_resource::<CalibrationDir>() {
+            let dir = app
+                .get_added_plugins::<AssetPlugin>()
+                .first()
+                .map_or_else(CalibrationDir::default, |assets| {
+                    CalibrationDir::in_asset_folder(&assets.file_path)
+                });
+            app.insert_resource(dir);
+        }
         app.register_type::<FrameBudget>()
             .register_type::<LodDiagnostics>()
             .init_resource::<FrameBudget>()
@@ -787,6 +815,7 @@ fn write_draw_lists(
 fn load_calibration(
     budget: Res<FrameBudget>,
     adapter: Option<Res<AdapterIdentity>>,
+    dir: Res<CalibrationDir>,
     mut model: ResMut<LodCostModel>,
     mut loaded: Local<Option<(CalibrationChoice, Option<AdapterIdentity>)>>,
 ) {
@@ -812,8 +841,7 @@ fn load_calibration(
             }
         }
         (CalibrationChoice::Adapter, Some(adapter)) => {
-            let dir = calibration_dir();
-            let search = crate::cost::find_calibration(&dir, adapter);
+            let search = crate::cost::find_calibration(&dir.0, adapter);
             for (path, e) in &search.refused {
                 error!("cost model: ignoring {}: {e}", path.display());
             }
@@ -831,7 +859,7 @@ fn load_calibration(
                         "cost model: no calibration for adapter `{}` in {}; using the default \
                          costs (measure one with `cargo run --release --example forest -- --calibrate`)",
                         adapter.name,
-                        dir.display()
+                        dir.0.display()
                     );
                     Calibration::default()
                 }

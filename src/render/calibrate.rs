@@ -48,7 +48,7 @@ use crate::culling::ForestCulling;
 use crate::draw::{LineRun, PointRun, TreeDrawList};
 use crate::ecosystem::TreeInstance;
 use crate::lod::select::{PROJECTED_LENGTH_FACTOR, TreeView, group_area, trunk_triangle_area};
-use crate::lod::{FrameBudget, LodCostModel, LodDiagnostics, LodMode, calibration_dir};
+use crate::lod::{CalibrationDir, FrameBudget, LodCostModel, LodDiagnostics, LodMode};
 use crate::tree::{Projection, TreeModel};
 use crate::wind::WindSettings;
 
@@ -58,7 +58,7 @@ use super::ForestRenderStats;
 /// machine rendering with lavapipe (137 configurations, frames of up to a second).
 #[derive(Resource, Clone, Debug, PartialEq)]
 pub struct CalibrationSettings {
-    /// Where to write the calibration; `None`: `assets/calibration/` under the adapter's
+    /// Where to write the calibration; `None`: the [`CalibrationDir`] under the adapter's
     /// [`calibration_file_name`].
     pub out: Option<PathBuf>,
     /// Frames after each change before measuring (pipelines, late timestamps).
@@ -276,7 +276,8 @@ fn plan(settings: &CalibrationSettings) -> Vec<Step> {
 
 fn run_calibration(
     mut commands: Commands,
-    settings: Res<CalibrationSettings>,
+    // One parameter: a system takes at most 16.
+    (settings, calibration_dir): (Res<CalibrationSettings>, Res<CalibrationDir>),
     mut state: ResMut<RunState>,
     mut progress: ResMut<CalibrationProgress>,
     culling: Res<ForestCulling>,
@@ -531,7 +532,7 @@ fn run_calibration(
         let path = settings
             .out
             .clone()
-            .unwrap_or_else(|| calibration_dir().join(calibration_file_name(&adapter.name)));
+            .unwrap_or_else(|| calibration_dir.0.join(calibration_file_name(&adapter.name)));
         write(&path, &calibration)?;
         print_report(&calibration, &state.render_samples);
         cost_model.calibration = calibration;
