@@ -12,6 +12,9 @@
 //! `+`/`-` raise/lower the target frame time; `M` cycle the mode; `B` cycle the budget
 //! strategy; `N` toggle wind; `C` toggle the culling boxes; `H` toggle the HUD.
 
+#[path = "support/frame_stats.rs"]
+mod frame_stats;
+
 use std::io::Write;
 use std::time::Duration;
 
@@ -32,6 +35,7 @@ use bevy_sherwood::render::{
     CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
 };
 use bevy_sherwood::wind::WindSettings;
+use frame_stats::FrameStats;
 
 const USAGE: &str = "\
 usage: forest [OPTIONS]
@@ -693,28 +697,9 @@ fn write_csv(file: &str, rows: &[Row]) -> std::io::Result<()> {
 
 fn summary(target_ms: f32, rows: &[Row]) -> String {
     let times: Vec<f64> = rows.iter().map(|r| f64::from(r.measured_ms)).collect();
-    let n = times.len();
-    let target = f64::from(target_ms);
-    let mean = times.iter().sum::<f64>() / n.max(1) as f64;
-    let std = (times.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt();
-    let avg_err = times
-        .iter()
-        .map(|t| (t - target).abs() / target)
-        .sum::<f64>()
-        / n.max(1) as f64;
-    let mut sorted = times.clone();
-    sorted.sort_by(f64::total_cmp);
-    let percentile = |p: f64| {
-        if sorted.is_empty() {
-            0.0
-        } else {
-            sorted[((p * (n - 1) as f64).round() as usize).min(n - 1)]
-        }
-    };
-    let over = times.iter().filter(|&&t| t > 1.1 * target).count() as f64 / n.max(1) as f64 * 100.0;
+    let s = FrameStats::of(&times, f64::from(target_ms));
     format!(
-        "summary frames={n} target_ms={target_ms} mean_ms={mean:.3} std_ms={std:.3} avg_err={avg_err:.4} p95_ms={:.3} p99_ms={:.3} over_pct={over:.2}",
-        percentile(0.95),
-        percentile(0.99)
+        "summary frames={} target_ms={target_ms} mean_ms={:.3} std_ms={:.3} avg_err={:.4} p95_ms={:.3} p99_ms={:.3} over_pct={:.2}",
+        s.frames, s.mean, s.std, s.avg_err, s.p95, s.p99, s.over_pct
     )
 }

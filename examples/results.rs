@@ -13,7 +13,11 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use frame_stats::FrameStats;
 use plotters::prelude::*;
+
+#[path = "support/frame_stats.rs"]
+mod frame_stats;
 
 /// One recorded frame.
 #[derive(Clone, Debug)]
@@ -38,41 +42,19 @@ struct Run {
     frames: Vec<Frame>,
 }
 
-/// The statistics of a run.
+/// The statistics of a run: its frame times', and the model's.
 struct Stats {
-    mean: f64,
-    std: f64,
-    avg_err: f64,
-    p95: f64,
-    p99: f64,
-    over_pct: f64,
+    frames: FrameStats,
     logic: f64,
     prediction_err: f64,
-    peak: f64,
 }
 
 impl Run {
     fn stats(&self) -> Stats {
-        let t: Vec<f64> = self.frames.iter().map(|f| f.measured_ms).collect();
-        let n = t.len().max(1) as f64;
-        let mean = t.iter().sum::<f64>() / n;
-        let std = (t.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
-        let target = self.target_ms;
-        let mut sorted = t.clone();
-        sorted.sort_by(f64::total_cmp);
-        let pct = |p: f64| {
-            sorted
-                .get(((p * (sorted.len().max(1) - 1) as f64).round()) as usize)
-                .copied()
-                .unwrap_or(0.0)
-        };
+        let times: Vec<f64> = self.frames.iter().map(|f| f.measured_ms).collect();
+        let n = times.len().max(1) as f64;
         Stats {
-            mean,
-            std,
-            avg_err: t.iter().map(|x| (x - target).abs() / target).sum::<f64>() / n,
-            p95: pct(0.95),
-            p99: pct(0.99),
-            over_pct: t.iter().filter(|&&x| x > 1.1 * target).count() as f64 / n * 100.0,
+            frames: FrameStats::of(&times, self.target_ms),
             logic: self.frames.iter().map(|f| f.logic_ms).sum::<f64>() / n,
             prediction_err: self
                 .frames
@@ -80,7 +62,6 @@ impl Run {
                 .map(|f| (f.predicted_ms - f.measured_ms).abs() / f.measured_ms.max(1e-6))
                 .sum::<f64>()
                 / n,
-            peak: sorted.last().copied().unwrap_or(0.0),
         }
     }
 }
@@ -319,11 +300,11 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
         let unlimited = group.iter().copied().find(|r| r.mode == "unlimited");
         writeln!(md, "## {trees} trees, {path} path\n")?;
         if let Some(u) = unlimited {
-            let s = u.stats();
+            let s = u.stats().frames;
             writeln!(
                 md,
                 "Unlimited: {} frames, mean {:.1} ms, std {:.1}, peak {:.1} ms, mean visible {:.0}.\n",
-                u.frames.len(),
+                s.frames,
                 s.mean,
                 s.std,
                 s.peak,
@@ -346,8 +327,12 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
                 .unwrap_or(core::cmp::Ordering::Equal)
         });
         for run in &timed {
-            let s = run.stats();
-            let applies = run.target_ms >= 2.0 * s.logic;
+            let Stats {
+                frames: s,
+                logic,
+                prediction_err,
+            } = run.stats();
+            let applies = run.target_ms >= 2.0 * logic;
             let met = (s.mean - run.target_ms).abs() <= 0.03 * run.target_ms
                 && s.avg_err <= 0.05
                 && s.over_pct <= 5.0;
@@ -368,8 +353,8 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
                 s.p95,
                 s.p99,
                 s.over_pct,
-                s.logic,
-                s.prediction_err,
+                logic,
+                prediction_err,
             )?;
         }
         writeln!(md)?;
