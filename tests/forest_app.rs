@@ -105,18 +105,9 @@ fn forest_spawns_culls_and_respawns() {
 #[test]
 fn a_species_that_fails_to_load_does_not_hold_the_forest_back() {
     let mut app = app();
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/forests/default.ecosystem.ron"
-    ))
-    .unwrap();
-    let mut desc = bevy_sherwood::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap();
+    let mut desc = common::default_ecosystem();
     desc.species[1].tree = "species/missing.species.ron".into();
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<Ecosystem>>()
-        .add(Ecosystem(desc));
-    app.world_mut().spawn(Forest(handle));
+    common::spawn_forest(&mut app, desc);
     let view = Mat4::perspective_infinite_reverse_rh(1.2, 1.0, 0.1)
         * Mat4::look_at_rh(
             Vec3::new(100.0, 400.0, 100.01),

@@ -67,17 +67,31 @@ pub fn settle(app: &mut App, handle: &Handle<TreeModel>) -> LoadState {
     panic!("asset neither loaded nor failed");
 }
 
-/// A headless app with a forest of `trees` trees (the default forest's species, in equal
-/// numbers, at its density) and a culling hierarchy 6 levels deep; returns it with the
-/// terrain's side. No view yet: see [`look_from`].
-pub fn forest_of(trees: u32) -> (App, f32) {
-    let mut app = headless_app();
+/// The shipped default ecosystem (`assets/forests/default.ecosystem.ron`), parsed.
+pub fn default_ecosystem() -> bevy_sherwood::ecosystem::EcosystemDesc {
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/assets/forests/default.ecosystem.ron"
     ))
     .unwrap();
-    let mut desc = bevy_sherwood::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap();
+    bevy_sherwood::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap()
+}
+
+/// Spawns a forest of `desc` in `app`.
+pub fn spawn_forest(app: &mut App, desc: bevy_sherwood::ecosystem::EcosystemDesc) {
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<Ecosystem>>()
+        .add(Ecosystem(desc));
+    app.world_mut().spawn(Forest(handle));
+}
+
+/// A headless app with a forest of `trees` trees (the default forest's species, in equal
+/// numbers, at its density) and a culling hierarchy 6 levels deep; returns it with the
+/// terrain's side. No view yet: see [`look_from`].
+pub fn forest_of(trees: u32) -> (App, f32) {
+    let mut app = headless_app();
+    let mut desc = default_ecosystem();
     let species = desc.species.len() as u32;
     for s in &mut desc.species {
         s.count = trees / species;
@@ -85,11 +99,7 @@ pub fn forest_of(trees: u32) -> (App, f32) {
     desc.terrain.size *= (trees as f32 / 600.0).sqrt();
     desc.culling_depth = 6;
     let size = desc.terrain.size;
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<Ecosystem>>()
-        .add(Ecosystem(desc));
-    app.world_mut().spawn(Forest(handle));
+    spawn_forest(&mut app, desc);
     (app, size)
 }
 
