@@ -389,19 +389,7 @@ fn setup(
         }
     };
     if let Some(total) = options.trees {
-        let sum: u32 = desc.species.iter().map(|s| s.count).sum::<u32>().max(1);
-        let mut given = 0;
-        let n = desc.species.len();
-        for (i, s) in desc.species.iter_mut().enumerate() {
-            s.count = if i + 1 == n {
-                total - given
-            } else {
-                (u64::from(s.count) * u64::from(total) / u64::from(sum)) as u32
-            };
-            given += s.count;
-        }
-        // Keep the density of the file.
-        desc.terrain.size *= (total as f32 / sum as f32).sqrt();
+        desc.set_total_trees(total);
     }
     if let Some(seed) = options.seed {
         desc.seed = seed;

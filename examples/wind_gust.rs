@@ -106,11 +106,7 @@ fn setup(world: &mut World) -> Handle<Image> {
     ))
     .expect("the default forest ships with the crate");
     let mut desc = EcosystemDesc::from_ron_str(&text).expect("the default forest parses");
-    let total: u32 = desc.species.iter().map(|s| s.count).sum();
-    for s in &mut desc.species {
-        s.count = (s.count * 60 / total).max(1);
-    }
-    desc.terrain.size *= (60.0 / total as f32).sqrt();
+    desc.set_total_trees(60);
     let forest = world
         .resource_mut::<Assets<Ecosystem>>()
         .add(Ecosystem(desc));

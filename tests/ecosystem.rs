@@ -247,3 +247,26 @@ mod malformed {
         assert_eq!(e, "species[0].instances[0].scale: must be positive");
     }
 }
+
+#[test]
+fn a_new_total_keeps_the_species_proportions_and_the_density() {
+    let original = shipped("default");
+    let before: u32 = original.species.iter().map(|s| s.count).sum();
+    for total in [0, 1, 61, 1000, 2000] {
+        let mut desc = original.clone();
+        desc.set_total_trees(total);
+        let counts: Vec<u32> = desc.species.iter().map(|s| s.count).collect();
+        assert_eq!(counts.iter().sum::<u32>(), total);
+        for (s, o) in desc.species.iter().zip(&original.species) {
+            let wanted = f64::from(o.count) * f64::from(total) / f64::from(before);
+            assert!(
+                (f64::from(s.count) - wanted).abs() <= desc.species.len() as f64,
+                "{counts:?}"
+            );
+        }
+        let density = |d: &EcosystemDesc, n: u32| n as f32 / (d.terrain.size * d.terrain.size);
+        if total > 0 {
+            assert!((density(&desc, total) / density(&original, before) - 1.0).abs() < 1e-4);
+        }
+    }
+}

@@ -187,6 +187,24 @@ pub struct EcosystemLayout {
 }
 
 impl EcosystemDesc {
+    /// Sets the total number of trees to `total`, split across the species in the file's
+    /// proportions (the last species takes the rounding), and grows or shrinks the terrain
+    /// so the forest keeps its density.
+    pub fn set_total_trees(&mut self, total: u32) {
+        let sum: u32 = self.species.iter().map(|s| s.count).sum::<u32>().max(1);
+        let n = self.species.len();
+        let mut given = 0;
+        for (i, s) in self.species.iter_mut().enumerate() {
+            s.count = if i + 1 == n {
+                total - given
+            } else {
+                (u64::from(s.count) * u64::from(total) / u64::from(sum)) as u32
+            };
+            given += s.count;
+        }
+        self.terrain.size *= (total as f32 / sum as f32).sqrt();
+    }
+
     /// Parses and validates an ecosystem description.
     ///
     /// Optional fields may be written bare (`knots_x: [...]`) or as `Some(...)`: RON's
