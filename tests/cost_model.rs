@@ -301,3 +301,31 @@ fn correction_converges_within_a_second_without_oscillating() {
     correction.update(0.04, f32::NAN, dt);
     assert_eq!(correction.factor(), before);
 }
+
+#[test]
+fn one_wild_frame_barely_moves_the_correction_but_a_steady_error_is_learned() {
+    let dt = 1.0 / 30.0;
+    let predicted = 0.050;
+    let mut correction = OnlineCorrection::default();
+    for _ in 0..60 {
+        correction.update(predicted, predicted, dt);
+    }
+    // A frame predicted at 690 ms that took 55 ms (a tree at the camera).
+    correction.update(0.690, 0.055, dt);
+    let alpha = 1.0 - (-dt / correction.time_constant).exp();
+    let most = (alpha * MAX_FRAME_RATIO.ln()).exp();
+    assert!(
+        correction.factor() >= 1.0 / most - 1e-5,
+        "{}",
+        correction.factor()
+    );
+    assert!(correction.factor() < 1.0, "it still moves the right way");
+    // A calibration 10× too cheap is still corrected, within a few seconds.
+    let mut stale = OnlineCorrection::default();
+    let mut frames = 0;
+    while (stale.factor() - 10.0).abs() / 10.0 > 0.05 {
+        stale.update(predicted, predicted * 10.0, dt);
+        frames += 1;
+        assert!(frames < 150, "not learned after 5 s: {}", stale.factor());
+    }
+}

@@ -191,9 +191,9 @@ fn a_trunk_too_far_to_see_is_still_one_thin_line() {
 }
 
 #[test]
-fn a_tree_at_the_camera_costs_at_most_a_screenful_per_primitive() {
+fn a_tree_at_the_camera_fills_the_screen_once() {
     // Seen from inside (depth at the clamp), a leaf triangle projects to billions of
-    // pixels; it can fill the screen, not more.
+    // pixels; the tree's triangles together fill the screen, not more.
     let model = model();
     let viewport = 960.0 * 540.0;
     let unbounded = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
@@ -204,10 +204,15 @@ fn a_tree_at_the_camera_costs_at_most_a_screenful_per_primitive() {
     let mut list = TreeDrawList::default();
     let full = leaves(&model, &v, &costs, LeafMethod::Full, &g, 0.0, &mut list);
     let trunk = trunk_tc(&model, &v, &costs, f32::INFINITY, &mut list);
-    let screenful = |triangles: usize| costs.triangles(triangles as u32, viewport);
+    // Together, a trunk's triangles fill the screen once, as do the tree's leaves.
+    let screenful =
+        |triangles: usize| triangles as f32 * costs.triangle + costs.triangle_pixel * viewport;
     assert!(full.cost.is_finite() && trunk.cost.is_finite());
     assert!(full.cost <= screenful(model.leaf_triangle_count()) * 1.0001);
     assert!(trunk.cost <= screenful(model.trunk_triangle_count()) * 1.0001);
+    // And the time it takes is the per-triangle time plus one screen's fill, not the
+    // triangle count's worth of screens.
+    assert!(full.cost >= screenful(model.leaf_triangle_count()) * 0.5);
     let uncapped = leaves(&model, &v, &unbounded, LeafMethod::Full, &g, 0.0, &mut list);
     assert!(
         uncapped.cost > 100.0 * full.cost,

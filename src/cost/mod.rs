@@ -10,7 +10,9 @@
 //! tracks the ratio to the *uncorrected* prediction, it is a first-order low-pass filter
 //! of a measurement, not a feedback loop through the budget: it converges monotonically
 //! (no overshoot, no oscillation) and a stale or foreign calibration is corrected within
-//! a few time constants (by default about one second).
+//! a few time constants (by default about one second). Each frame's ratio is first
+//! limited to within [`MAX_FRAME_RATIO`] of the current factor, so one wild frame moves
+//! the factor little while a steady error of any size is still learned.
 
 use serde::{Deserialize, Serialize};
 
@@ -360,6 +362,12 @@ pub fn logic_time(tables: &[LogicTable], visible: u32, target_ms: f32) -> f32 {
     }
 }
 
+/// The most one frame's measured/predicted ratio may differ from the current factor, as
+/// a ratio, before it is smoothed in. A single frame whose prediction was far off (a
+/// stall, a tree at the camera) would otherwise drag the factor for a second of frames;
+/// a steady error of any size is still learned, at most this ratio per time constant.
+pub const MAX_FRAME_RATIO: f32 = 2.0;
+
 /// A smoothed multiplicative correction of one family's predictions.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct OnlineCorrection {
@@ -403,7 +411,10 @@ impl OnlineCorrection {
             1e-6
         };
         let alpha = 1.0 - (-dt / tau).exp();
-        let target = (measured / predicted).ln();
+        let step = MAX_FRAME_RATIO.ln();
+        let target = (measured / predicted)
+            .ln()
+            .clamp(self.log_factor - step, self.log_factor + step);
         self.log_factor += alpha * (target - self.log_factor);
     }
 }

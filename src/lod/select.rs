@@ -42,8 +42,10 @@ pub struct PrimitiveCosts {
     pub point: Vec<f32>,
     /// Per covered pixel of points, by size.
     pub point_pixel: Vec<f32>,
-    /// The most pixels one primitive can cover: the viewport's. Something at the camera
-    /// projects to millions of pixels per triangle, but draws at most the screen.
+    /// The most pixels one object (a trunk, a tree's leaves) or one batch of primitives
+    /// can cover: the viewport's. A tree at the camera projects to millions of pixels per
+    /// triangle, but its triangles together fill the screen, no more (the depth test
+    /// rejects what is hidden before it is shaded).
     pub max_pixels: f32,
 }
 
@@ -90,7 +92,7 @@ impl PrimitiveCosts {
         }
     }
 
-    /// The same costs with each primitive's coverage capped at `viewport_pixels` (ignored
+    /// The same costs with each object's coverage capped at `viewport_pixels` (ignored
     /// unless positive).
     pub fn within_viewport(mut self, viewport_pixels: f32) -> Self {
         if viewport_pixels > 0.0 {
@@ -104,14 +106,16 @@ impl PrimitiveCosts {
         values.get(i).copied().unwrap_or(0.0)
     }
 
-    /// `count` triangles of `area` pixels each.
+    /// `count` triangles of `area` pixels each, covering at most a screenful together.
     pub fn triangles(&self, count: u32, area: f32) -> f32 {
-        count as f32 * (self.triangle + self.triangle_pixel * area.min(self.max_pixels))
+        let n = count as f32;
+        n * self.triangle + self.triangle_pixel * (n * area.max(0.0)).min(self.max_pixels)
     }
 
-    /// `count` lines `width` pixels wide, `length` pixels long in total.
+    /// `count` lines `width` pixels wide, `length` pixels long in total, covering at most a
+    /// screenful together.
     pub fn lines(&self, width: u32, count: u32, length: f32) -> f32 {
-        let covered = (length * width as f32).min(count as f32 * self.max_pixels);
+        let covered = (length * width as f32).min(self.max_pixels);
         count as f32 * Self::pick(&self.line, width) + Self::pick(&self.line_pixel, width) * covered
     }
 
@@ -194,7 +198,7 @@ pub fn trunk_tc(
 ) -> Selected {
     out.trunk_lines.clear();
     let total = model.trunk_triangle_count() as u32;
-    let area = trunk_triangle_area(model, view);
+    let area = trunk_cost_area(model, view, costs);
     let each = costs.triangles(1, area);
     let affordable = if each > 0.0 {
         (time.max(0.0) / each).floor().min(total as f32) as u32
@@ -222,6 +226,13 @@ pub fn trunk_tc(
 pub fn trunk_triangle_area(model: &TreeModel, view: &TreeView) -> f32 {
     let p = pixels_per_unit(view, view.trunk_depth);
     model.mean_trunk_triangle_area * p * p
+}
+
+/// The area one trunk triangle is charged for: its projected area, with the whole trunk
+/// covering at most `costs.max_pixels`, so that the cost stays linear in the count.
+fn trunk_cost_area(model: &TreeModel, view: &TreeView, costs: &PrimitiveCosts) -> f32 {
+    let total = model.trunk_triangle_count().max(1) as f32;
+    trunk_triangle_area(model, view).min(costs.max_pixels / total)
 }
 
 /// Line widths assigned to the trunk's segments: runs `(width, segments)` thin → thick,
@@ -285,7 +296,7 @@ pub fn trunk_static(
     plan.write(k, out);
     out.trunk_triangles = thick_end(model, k);
     let px = pixels_per_unit(view, view.trunk_depth);
-    let area = trunk_triangle_area(model, view);
+    let area = trunk_cost_area(model, view, costs);
     Selected {
         cost: plan.lines_cost(model, costs, px, k) + trunk_triangle_cost(model, costs, k, area),
         truncated: false,
@@ -324,7 +335,7 @@ pub fn trunk_tclod(
         static_lod.lines = vec![(widths.min.max(1), n - 1..n)];
     }
     let time = time.max(0.0);
-    let area = trunk_triangle_area(model, view);
+    let area = trunk_cost_area(model, view, costs);
     let px = pixels_per_unit(view, view.trunk_depth);
     let static_k = static_lod.triangles.start;
     let triangles = |k: u32| trunk_triangle_cost(model, costs, k, area);
@@ -438,6 +449,13 @@ pub fn leaves(
         })
         .filter(|a| a.is_finite())
         .sum();
+    // The tree's leaves together cover at most a screenful: triangles are charged for
+    // their share of it (the LOD decisions still see the projected areas).
+    let charged = if area_left > costs.max_pixels {
+        costs.max_pixels / area_left
+    } else {
+        1.0
+    };
     let mut time_left = time.max(0.0);
     let mut total = Selected::default();
     for g in groups {
@@ -455,7 +473,7 @@ pub fn leaves(
         };
         area_left -= area;
         let given = time_left * share;
-        let leaf_pixels = area / n as f32 / triangles_per_leaf.max(1.0);
+        let leaf_pixels = area * charged / n as f32 / triangles_per_leaf.max(1.0);
         let triangle_leaf = costs.triangles(1, leaf_pixels) * triangles_per_leaf;
         let chosen = match method {
             LeafMethod::Tc => group_tc(&leaves, triangle_leaf, given, out),
