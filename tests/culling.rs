@@ -242,3 +242,37 @@ fn a_swayed_tree_is_tested_where_it_moved() {
     moved.clear();
     assert!(moved.is_empty() && moved.get(0).is_none());
 }
+
+#[test]
+fn moved_shapes_keep_the_right_shape_per_instance_through_removals() {
+    let shape_of = |i: usize| CullShape {
+        bounds: Bounds {
+            min: Vec3::splat(i as f32),
+            max: Vec3::splat(i as f32 + 1.0),
+        },
+        trunk: Bounds::EMPTY,
+        groups: Vec::new(),
+    };
+    let mut moved = MovedShapes::default();
+    let mut expected: Vec<bool> = vec![false; 12];
+    // A fixed interleaving of writes and removals, including removing the absent.
+    for step in 0..200_usize {
+        let i = (step * 7 + step / 5) % 12;
+        if step % 3 == 0 {
+            moved.remove(i);
+            expected[i] = false;
+        } else {
+            *moved.shape_mut(i) = shape_of(i);
+            expected[i] = true;
+        }
+        moved.remove(40); // never written
+        for (j, &has) in expected.iter().enumerate() {
+            assert_eq!(
+                moved.get(j).cloned(),
+                has.then(|| shape_of(j)),
+                "step {step}"
+            );
+        }
+        assert_eq!(moved.len(), expected.iter().filter(|h| **h).count());
+    }
+}

@@ -290,3 +290,75 @@ fn edited_association_rules_take_effect_on_the_next_frame() {
     app.update();
     assert!(!moves(&app), "the rings still follow the old rules");
 }
+
+#[test]
+fn slowly_moving_trees_are_updated_less_often_and_hold_their_bend_in_between() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_sherwood::wind::{RingOffsetTable, WindSettings, WindStats};
+
+    let (mut app, size) = common::forest_of(600);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(
+        std::time::Duration::from_millis(50),
+    ));
+    let eye = Vec3::new(-5.0, 20.0, -5.0);
+    common::look_from(&mut app, eye, Vec3::new(size / 2.0, 0.0, size / 2.0));
+    common::until_visible(&mut app);
+    for _ in 0..40 {
+        app.update(); // two seconds of wind
+    }
+    let slices = |app: &App| {
+        let table = app.world().resource::<RingOffsetTable>();
+        table
+            .starts
+            .windows(2)
+            .map(|w| table.offsets[w[0] as usize..w[1] as usize].to_vec())
+            .collect::<Vec<_>>()
+    };
+    let moving = |app: &App| {
+        let culling = app.world().resource::<ForestCulling>();
+        (0..culling.entities.len())
+            .map(|i| culling.moved.get(i).is_some())
+            .collect::<Vec<_>>()
+    };
+    let interval = app.world().resource::<WindSettings>().max_update_interval as usize;
+    let mut before = slices(&app);
+    let mut moving_throughout = moving(&app);
+    let mut changed_ever = vec![false; before.len()];
+    for _ in 0..interval {
+        app.update();
+        let stats = *app.world().resource::<WindStats>();
+        let now = slices(&app);
+        let changed: Vec<bool> = now.iter().zip(&before).map(|(a, b)| a != b).collect();
+        // An instance's offsets change exactly when it is updated (the wind never stops
+        // here), and the rest hold theirs.
+        assert_eq!(
+            changed.iter().filter(|c| **c).count(),
+            stats.updated as usize,
+            "{stats:?}"
+        );
+        assert_eq!(stats.updated + stats.held, stats.moved);
+        assert!(stats.held > 0 && stats.updated > 0, "{stats:?}");
+        // Staggered: no frame updates every moving tree.
+        assert!(stats.updated < stats.moved, "{stats:?}");
+        for (i, m) in moving(&app).into_iter().enumerate() {
+            moving_throughout[i] &= m;
+            changed_ever[i] |= changed[i];
+        }
+        before = now;
+    }
+    // Over the longest interval, every tree that kept moving was updated at least once.
+    for (i, _) in moving_throughout.iter().enumerate().filter(|(_, m)| **m) {
+        assert!(changed_ever[i], "moving instance {i} was never updated");
+    }
+
+    // Turned off, every moving tree is updated every frame.
+    app.world_mut()
+        .resource_mut::<WindSettings>()
+        .full_rate_pixels = 0.0;
+    for _ in 0..3 {
+        app.update();
+        let stats = *app.world().resource::<WindStats>();
+        assert!(stats.moved > 0);
+        assert_eq!((stats.updated, stats.held), (stats.moved, 0), "{stats:?}");
+    }
+}

@@ -264,3 +264,27 @@ fn a_tree_twice_as_large_responds_as_to_half_the_wind() {
         assert!((*a - *b).length() <= 1e-5, "ring {r}: {a} vs {b}");
     }
 }
+
+#[test]
+fn update_interval_halves_the_rate_as_the_motion_halves() {
+    use bevy_sherwood::wind::update_interval;
+    // Full rate from 8 px, at most every 8th frame.
+    let at = |px: f32| update_interval(px, 8.0, 8);
+    assert_eq!(at(100.0), 1);
+    assert_eq!(at(8.0), 1);
+    assert_eq!(at(5.0), 1);
+    assert_eq!(at(4.0), 2);
+    assert_eq!(at(2.5), 2);
+    assert_eq!(at(2.0), 4);
+    assert_eq!(at(1.0), 8);
+    assert_eq!(at(0.01), 8);
+    assert_eq!(at(0.0), 8);
+    // The limit is rounded down to a power of two; off and nonsense mean every frame.
+    assert_eq!(update_interval(0.01, 8.0, 6), 4);
+    assert_eq!(update_interval(0.01, 8.0, 0), 1);
+    assert_eq!(update_interval(0.01, 0.0, 8), 1);
+    assert_eq!(update_interval(0.01, -3.0, 8), 1);
+    assert_eq!(update_interval(f32::NAN, 8.0, 8), 1);
+    assert_eq!(update_interval(f32::INFINITY, 8.0, 8), 1);
+    assert_eq!(update_interval(1.0, f32::NAN, 8), 1);
+}

@@ -95,14 +95,17 @@ impl From<&TreeModel> for CullShape {
     }
 }
 
-/// The shapes of the instances that moved this frame (wind), in their own space: they
-/// replace their species' [`CullShape`] in the per-instance tests of partially visible
-/// leaves, so a bent tree is culled where it is drawn. Storage is reused across frames.
+/// The shapes of the instances the wind has moved, in their own space: they replace
+/// their species' [`CullShape`] in the per-instance tests of partially visible leaves, so
+/// a bent tree is culled where it is drawn. An instance keeps its shape until it is
+/// rewritten or removed; storage is reused.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MovedShapes {
     /// Per instance: index into `shapes`, or `NOT_MOVED`.
     slot: Vec<u32>,
     shapes: Vec<CullShape>,
+    /// Per used shape: the instance it belongs to.
+    owner: Vec<u32>,
     used: usize,
 }
 
@@ -112,7 +115,28 @@ impl MovedShapes {
     /// Forgets every moved shape (keeps the storage).
     pub fn clear(&mut self) {
         self.slot.clear();
+        self.owner.clear();
         self.used = 0;
+    }
+
+    /// Forgets `instance`'s moved shape (it is back at rest), if it has one.
+    pub fn remove(&mut self, instance: usize) {
+        let Some(&s) = self.slot.get(instance) else {
+            return;
+        };
+        if s == NOT_MOVED {
+            return;
+        }
+        // The last used shape fills the hole.
+        let last = self.used - 1;
+        self.shapes.swap(s as usize, last);
+        self.owner.swap(s as usize, last);
+        self.owner.pop();
+        if let Some(&moved_in) = self.owner.get(s as usize) {
+            self.slot[moved_in as usize] = s;
+        }
+        self.slot[instance] = NOT_MOVED;
+        self.used = last;
     }
 
     /// Instances with a moved shape.
@@ -148,6 +172,7 @@ impl MovedShapes {
                 });
             }
             self.slot[instance] = self.used as u32;
+            self.owner.push(instance as u32);
             self.used += 1;
         }
         &mut self.shapes[self.slot[instance] as usize]

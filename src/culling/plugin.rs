@@ -35,6 +35,14 @@ pub struct ForestCulling {
     pub moved: MovedShapes,
     generation: u32,
     failed_logged: u32,
+    rebuilds: u64,
+}
+
+impl ForestCulling {
+    /// Changes whenever `entities` (and with it every per-instance index) is rebuilt.
+    pub fn layout_version(&self) -> u64 {
+        self.rebuilds
+    }
 }
 
 /// Draws the culling boxes with gizmos: dashed for fully visible, solid for partially
@@ -155,6 +163,7 @@ fn rebuild_hierarchy(
     culling.instances = list;
     culling.shapes = shapes;
     culling.generation = state.generation;
+    culling.rebuilds += 1;
 }
 
 fn cull_forest(mut culling: ResMut<ForestCulling>, views: Query<&CullView>) {

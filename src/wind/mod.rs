@@ -8,6 +8,8 @@ mod plugin;
 mod spring;
 
 pub use asset::{SpringSet, SpringSetError, SpringSetLoader, WindPlugin};
-pub use motion::{AssociationRule, RingMotion, WindRig, associate, moved_bounds, ring_offsets};
+pub use motion::{
+    AssociationRule, RingMotion, WindRig, associate, moved_bounds, ring_offsets, update_interval,
+};
 pub use plugin::{RingOffsetTable, WindSettings, WindStats};
 pub use spring::{FixedStepper, GustDesc, Spring, SpringDesc, WindDesc};

@@ -124,9 +124,16 @@ struct RigRing {
     influence: f32,
     cos_max_angle: f32,
     sin_max_angle: f32,
+    /// Pushes shorter than this (squared) bend the segment by its first-order rotation.
+    linear_below_squared: f32,
 }
 
 const NO_SPRING: u32 = u32::MAX;
+
+/// Pushes up to this fraction of a segment's length bend it by the first-order rotation
+/// (the push's component across the segment) instead of the exact rigid turn: within
+/// 5% of the exact offset and the segment's length within 0.5%, at a fraction of the cost.
+const LINEAR_PUSH: f32 = 0.1;
 
 impl WindRig {
     /// The rig of `model` with its rings associated as `motions` says (one entry per
@@ -157,6 +164,11 @@ impl WindRig {
                     influence: motion.influence,
                     cos_max_angle,
                     sin_max_angle,
+                    linear_below_squared: if motion.max_angle >= LINEAR_PUSH.atan() {
+                        (LINEAR_PUSH * length).powi(2)
+                    } else {
+                        0.0
+                    },
                 }
             })
             .collect::<Vec<RigRing>>();
@@ -293,6 +305,10 @@ fn to_model_space(to_model: Quat, scale: f32, displacement: Vec3) -> Vec3 {
 /// `rest + push`; past it, it turns by the limit towards that direction — no
 /// trigonometry per ring.
 fn bend(ring: &RigRing, push: Vec3) -> Vec3 {
+    if push.length_squared() < ring.linear_below_squared {
+        // Small push: the first-order rotation (the push across the segment).
+        return push - ring.from * ring.from.dot(push);
+    }
     let rest = ring.from * ring.length;
     let Some(to) = (rest + push).try_normalize() else {
         return Vec3::ZERO;
@@ -337,4 +353,32 @@ pub fn moved_bounds(model: &TreeModel, offsets: &[Vec3], out: &mut CullShape) {
         })
     });
     out.trunk = trunk;
+}
+
+/// The wind's update-rate level of detail: how many frames apart an instance whose
+/// farthest ring moves `motion_pixels` from rest is updated, a power of two from 1 to
+/// `max_interval` (rounded down to one).
+///
+/// A tree moving at least `full_rate_pixels` is updated every frame; one moving half as
+/// far every second frame, a quarter as far every fourth, and so on. Springs swing a tree
+/// by a roughly fixed fraction of its amplitude per frame, so the jump a held tree makes
+/// when it is next updated stays about the same size on screen whatever its interval.
+/// `full_rate_pixels` of 0 (or less, or not a number) updates every instance every frame.
+pub fn update_interval(motion_pixels: f32, full_rate_pixels: f32, max_interval: u32) -> u32 {
+    let ratio = full_rate_pixels / motion_pixels;
+    // Also for a zero, negative or NaN `full_rate_pixels`.
+    if ratio.is_nan() || ratio < 2.0 {
+        return 1;
+    }
+    let most = floor_power_of_two(max_interval.max(1));
+    let wanted = floor_power_of_two(ratio.min(most as f32) as u32);
+    wanted.clamp(1, most)
+}
+
+fn floor_power_of_two(n: u32) -> u32 {
+    if n == 0 {
+        0
+    } else {
+        1 << (31 - n.leading_zeros())
+    }
 }

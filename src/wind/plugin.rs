@@ -7,10 +7,10 @@ use bevy::prelude::*;
 use super::asset::SpringSet;
 use std::collections::HashMap;
 
-use super::motion::{WindRig, associate, moved_bounds, ring_offsets};
+use super::motion::{WindRig, associate, moved_bounds, ring_offsets, update_interval};
 use super::spring::{FixedStepper, Spring};
 use crate::SherwoodSystems;
-use crate::culling::{ForestCulling, InstanceVisibility};
+use crate::culling::{ForestCulling, InstanceVisibility, MovedShapes};
 use crate::ecosystem::TreeInstance;
 use crate::tree::{TreeModel, TreeModelsVersion};
 use crate::view::LodView;
@@ -24,6 +24,16 @@ pub struct WindSettings {
     /// whose index has no set stay still. Default: `wind/default.wind.ron` for index 0,
     /// loaded at start-up when the list is empty.
     pub sets: Vec<Handle<SpringSet>>,
+    /// Update-rate level of detail: a moving tree whose farthest ring moves at least this
+    /// many pixels from rest is updated every frame, one moving half as far every second
+    /// frame, and so on up to `max_update_interval` (see
+    /// [`update_interval`](super::update_interval)); in between it keeps its last
+    /// offsets. Updates are staggered across instances so the cost is even frame to
+    /// frame. 0 updates every moving tree every frame. Default: `8.0`.
+    pub full_rate_pixels: f32,
+    /// The most frames between two updates of a moving tree (rounded down to a power of
+    /// two). Default: `8`.
+    pub max_update_interval: u32,
 }
 
 impl Default for WindSettings {
@@ -31,6 +41,8 @@ impl Default for WindSettings {
         Self {
             enabled: true,
             sets: Vec::new(),
+            full_rate_pixels: 8.0,
+            max_update_interval: 8,
         }
     }
 }
@@ -44,7 +56,7 @@ pub struct RingOffsetTable {
     pub offsets: Vec<Vec3>,
     /// Where each instance's rings start; one more entry than instances.
     pub starts: Vec<u32>,
-    /// Instances moved this frame (the rest were invisible or below the motion LOD).
+    /// Instances with offsets (the rest were invisible or below the motion LOD).
     pub moved: u32,
 }
 
@@ -53,8 +65,13 @@ pub struct RingOffsetTable {
 pub struct WindStats {
     /// Visible instances with a spring set (candidates for motion).
     pub candidates: u32,
-    /// Instances moved.
+    /// Instances moving: bent by the wind this frame (`updated`) or holding an earlier
+    /// frame's bend (`held`).
     pub moved: u32,
+    /// Moving instances whose offsets were computed this frame.
+    pub updated: u32,
+    /// Moving instances that kept their last offsets (update-rate level of detail).
+    pub held: u32,
     /// Candidates left still by the motion level of detail (their farthest ring's motion,
     /// the largest spring displacement × the rig's reach, projects below the set's pixel
     /// threshold).
@@ -122,6 +139,87 @@ fn step_springs(
     }
 }
 
+/// What the stage keeps of one instance between frames (in the culling order): enough to
+/// decide whether it moves without touching the ECS, and whether its offsets are not zero.
+#[derive(Clone, Copy, Debug)]
+struct InstanceWind {
+    model: AssetId<TreeModel>,
+    motion: u32,
+    scale: f32,
+    rotation: Quat,
+    translation: Vec3,
+    /// Index into [`WindCache::rigs`], or [`UNRESOLVED`].
+    rig: u32,
+    /// Its offsets (and moved culling shape) are not at rest.
+    moving: bool,
+}
+
+const UNRESOLVED: u32 = u32::MAX;
+
+/// The stage's memory across frames. The offset table is kept too: an instance updated at
+/// a lower rate keeps its offsets in between, and a still one is zeroed once.
+#[derive(Default)]
+struct WindCache {
+    /// `(culling layout version, models version)` the instances were laid out for.
+    layout: Option<(u64, u64)>,
+    /// `None` for an instance whose tree is missing (it never moves).
+    instances: Vec<Option<InstanceWind>>,
+    rigs: Vec<WindRig>,
+    rig_index: HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), u32>,
+    /// Per motion index this frame: the springs' displacements and the largest of them.
+    springs: Vec<Option<(AssetId<SpringSet>, Vec<Vec3>, f32, f32)>>,
+    frame: u32,
+    scratch: Vec<Vec3>,
+}
+
+impl WindCache {
+    /// Lays out the table for the culling's instances (all at rest).
+    fn lay_out(
+        &mut self,
+        entities: &[Entity],
+        instances: &Query<(&TreeInstance, &GlobalTransform)>,
+        models: &Assets<TreeModel>,
+        table: &mut RingOffsetTable,
+    ) {
+        self.instances.clear();
+        table.offsets.clear();
+        table.starts.clear();
+        for &entity in entities {
+            table.starts.push(table.offsets.len() as u32);
+            let laid = instances
+                .get(entity)
+                .ok()
+                .and_then(|(instance, transform)| {
+                    let model = models.get(&instance.model)?;
+                    table
+                        .offsets
+                        .resize(table.offsets.len() + model.rings.len(), Vec3::ZERO);
+                    let (_, rotation, translation) = transform.to_scale_rotation_translation();
+                    Some(InstanceWind {
+                        model: instance.model.id(),
+                        motion: instance.motion,
+                        scale: instance.scale,
+                        rotation,
+                        translation,
+                        rig: UNRESOLVED,
+                        moving: false,
+                    })
+                });
+            self.instances.push(laid);
+        }
+        table.starts.push(table.offsets.len() as u32);
+    }
+
+    /// Forgets every rig (rules or models changed).
+    fn forget_rigs(&mut self) {
+        self.rigs.clear();
+        self.rig_index.clear();
+        for instance in self.instances.iter_mut().flatten() {
+            instance.rig = UNRESOLVED;
+        }
+    }
+}
+
 #[expect(
     clippy::too_many_arguments,
     reason = "one system gathering the stage's inputs"
@@ -137,18 +235,38 @@ fn move_rings(
     mut table: ResMut<RingOffsetTable>,
     mut stats: ResMut<WindStats>,
     version: Res<TreeModelsVersion>,
-    mut rigs: Local<HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), WindRig>>,
+    mut cache: Local<WindCache>,
 ) {
     let start_time = std::time::Instant::now();
-    // A rig is derived from a tree model and a set's rules: an edited (hot-reloaded) one
-    // must not keep moving its rings the old way.
-    if sets.is_changed() || version.is_changed() {
-        rigs.clear();
-    }
+    let cache = &mut *cache;
     let table = &mut *table;
-    table.offsets.clear();
-    table.starts.clear();
-    table.moved = 0;
+    let layout = (culling.layout_version(), version.0);
+    if cache.layout != Some(layout) {
+        cache.lay_out(&culling.entities, &instances, &models, table);
+        culling.moved.clear();
+        cache.layout = Some(layout);
+    }
+    // A rig is derived from a tree model and a set's rules: an edited (hot-reloaded) one
+    // must not keep moving its rings the old way, not even for a held frame.
+    let refresh = sets.is_changed() || version.is_changed() || settings.is_changed();
+    if refresh {
+        cache.forget_rigs();
+    }
+    cache.springs.clear();
+    for (handle, running) in settings.sets.iter().zip(&state.sets) {
+        let now = match (running, sets.get(handle)) {
+            (Some((_, springs, _)), Some(set)) => {
+                let displacements: Vec<Vec3> = springs.iter().map(|s| s.displacement).collect();
+                let largest = displacements.iter().map(|d| d.length()).fold(0.0, f32::max);
+                Some((handle.id(), displacements, largest, set.pixel_threshold))
+            }
+            _ => None,
+        };
+        cache.springs.push(now);
+    }
+    let frame = cache.frame;
+    cache.frame = cache.frame.wrapping_add(1);
+    let view = views.iter().next();
     let mut counts = WindStats::default();
     let ForestCulling {
         entities,
@@ -156,76 +274,122 @@ fn move_rings(
         moved,
         ..
     } = &mut *culling;
-    moved.clear();
-    let view = views.iter().next();
-    let mut scratch = Vec::new();
-    let mut displacements = Vec::new();
-    for (i, &entity) in entities.iter().enumerate() {
-        table.starts.push(table.offsets.len() as u32);
-        let Ok((instance, transform)) = instances.get(entity) else {
+    for i in 0..entities.len().min(cache.instances.len()) {
+        let Some(instance) = cache.instances[i].as_mut() else {
             continue;
         };
-        let Some(model) = models.get(&instance.model) else {
-            continue;
-        };
-        let start = table.offsets.len();
-        table.offsets.resize(start + model.rings.len(), Vec3::ZERO);
+        let rings = table.starts[i] as usize..table.starts[i + 1] as usize;
         let visible = result
             .visibility
             .get(i)
             .is_some_and(|v| *v != InstanceVisibility::Invisible);
-        let running = state
-            .sets
+        let springs = cache
+            .springs
             .get(instance.motion as usize)
-            .and_then(Option::as_ref);
-        let set = settings
-            .sets
-            .get(instance.motion as usize)
-            .and_then(|h| sets.get(h));
-        let (Some((_, springs, _)), Some(set)) = (running, set) else {
+            .and_then(Option::as_ref)
+            .filter(|_| settings.enabled && visible);
+        let Some((set_id, displacements, largest, pixel_threshold)) = springs else {
+            come_to_rest(instance, &mut table.offsets[rings], moved, i);
             continue;
         };
-        if !settings.enabled || !visible {
+        let Some(model) = models.get(instance.model) else {
+            continue;
+        };
+        counts.candidates += 1;
+        let Some(rig) = resolve_rig(
+            &mut cache.rigs,
+            &mut cache.rig_index,
+            instance,
+            model,
+            *set_id,
+            &sets,
+        ) else {
+            continue;
+        };
+        // Motion LOD: still when the farthest-moving ring (the largest spring
+        // displacement times the rig's reach) projects below the threshold.
+        let pixels_per_unit =
+            view.map(|v| v.focal_pixels / v.position.distance(instance.translation).max(1e-3));
+        let motion_pixels =
+            pixels_per_unit.map_or(f32::INFINITY, |ppu| largest * rig.reach() * ppu);
+        if motion_pixels < *pixel_threshold {
+            counts.skipped += 1;
+            come_to_rest(instance, &mut table.offsets[rings], moved, i);
             continue;
         }
-        counts.candidates += 1;
-        displacements.clear();
-        displacements.extend(springs.iter().map(|s| s.displacement));
-        // Association depends only on the tree type and the set: computed once.
-        let set_id = settings.sets[instance.motion as usize].id();
-        let rig = rigs
-            .entry((instance.model.id(), set_id))
-            .or_insert_with(|| WindRig::new(model, &associate(model, &set.rules, springs.len())));
-        // Motion LOD: skip the tree when its farthest-moving ring (the largest spring
-        // displacement times the rig's reach) projects below the threshold.
-        let (_, rotation, translation) = transform.to_scale_rotation_translation();
-        let pixels_per_unit =
-            view.map(|v| v.focal_pixels / v.position.distance(translation).max(1e-3));
-        if let Some(ppu) = pixels_per_unit {
-            let largest = displacements.iter().map(|d| d.length()).fold(0.0, f32::max);
-            if largest * rig.reach() * ppu < set.pixel_threshold {
-                counts.skipped += 1;
-                continue;
-            }
+        // Update-rate LOD, staggered by instance so each frame updates a similar share.
+        let interval = update_interval(
+            motion_pixels,
+            settings.full_rate_pixels,
+            settings.max_update_interval,
+        );
+        if instance.moving && !refresh && !frame.wrapping_add(i as u32).is_multiple_of(interval) {
+            counts.held += 1;
+            counts.moved += 1;
+            continue;
         }
-        let threshold =
-            pixels_per_unit.map_or(0.0, |ppu| set.pixel_threshold / ppu / instance.scale);
+        let threshold = pixels_per_unit.map_or(0.0, |ppu| pixel_threshold / ppu / instance.scale);
         ring_offsets(
             rig,
-            &displacements,
-            rotation,
+            displacements,
+            instance.rotation,
             instance.scale,
             threshold,
-            &mut scratch,
+            &mut cache.scratch,
         );
-        table.offsets[start..].copy_from_slice(&scratch);
-        table.moved += 1;
-        moved_bounds(model, &scratch, moved.shape_mut(i));
+        if cache.scratch.len() == rings.len() {
+            table.offsets[rings].copy_from_slice(&cache.scratch);
+            moved_bounds(model, &cache.scratch, moved.shape_mut(i));
+            instance.moving = true;
+            counts.updated += 1;
+            counts.moved += 1;
+        } else {
+            come_to_rest(instance, &mut table.offsets[rings], moved, i);
+        }
     }
-    table.starts.push(table.offsets.len() as u32);
+    table.moved = counts.moved;
     *stats = WindStats {
-        moved: table.moved,
         update_ms: start_time.elapsed().as_secs_f32() * 1000.0,
         ..counts
     };
+}
+
+/// The rig of `instance`'s tree under the set `set_id`, built on first use.
+fn resolve_rig<'a>(
+    rigs: &'a mut Vec<WindRig>,
+    rig_index: &mut HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), u32>,
+    instance: &mut InstanceWind,
+    model: &TreeModel,
+    set_id: AssetId<SpringSet>,
+    sets: &Assets<SpringSet>,
+) -> Option<&'a WindRig> {
+    if instance.rig == UNRESOLVED {
+        let key = (instance.model, set_id);
+        instance.rig = match rig_index.get(&key) {
+            Some(&index) => index,
+            None => {
+                let set = sets.get(set_id)?;
+                let motions = associate(model, &set.rules, set.springs.len());
+                rigs.push(WindRig::new(model, &motions));
+                let index = rigs.len() as u32 - 1;
+                rig_index.insert(key, index);
+                index
+            }
+        };
+    }
+    rigs.get(instance.rig as usize)
+}
+
+/// Puts a still instance back at rest, once.
+fn come_to_rest(
+    instance: &mut InstanceWind,
+    offsets: &mut [Vec3],
+    moved: &mut MovedShapes,
+    i: usize,
+) {
+    if instance.moving {
+        offsets.fill(Vec3::ZERO);
+        moved.remove(i);
+        instance.moving = false;
+    }
 }
