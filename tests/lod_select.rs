@@ -235,3 +235,103 @@ fn a_tree_at_the_camera_fills_the_screen_once() {
     );
     assert_eq!(capped, plain);
 }
+
+/// (triangle leaves, points) a list draws, and whether every group draws a leaf and no
+/// leaf is drawn twice.
+fn drawn(model: &TreeModel, list: &TreeDrawList) -> (u32, u32, bool) {
+    let mut drawn = vec![0u8; model.leaves.len()];
+    for r in &list.leaf_triangles {
+        r.clone().for_each(|l| drawn[l as usize] += 1);
+    }
+    let triangles = drawn.iter().map(|&d| d as u32).sum();
+    for r in &list.leaf_points {
+        r.leaves.clone().for_each(|l| drawn[l as usize] += 1);
+    }
+    let points = drawn.iter().map(|&d| d as u32).sum::<u32>() - triangles;
+    let sound = drawn.iter().all(|&d| d <= 1)
+        && model
+            .leaf_groups
+            .iter()
+            .all(|g| g.leaves.clone().any(|l| drawn[l as usize] == 1));
+    (triangles, points, sound)
+}
+
+#[test]
+fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
+    let model = model();
+    let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    let groups_count = model.leaf_groups.len() as u32;
+    let mut single_size_checks = 0;
+    for depth in [40.0, 150.0, 600.0] {
+        let v = view(depth);
+        let g = groups(&model, depth);
+        for method in [
+            LeafMethod::Tc,
+            LeafMethod::Tclod(PixelRange::default()),
+            LeafMethod::Static(1),
+            LeafMethod::Static(3),
+            LeafMethod::Full,
+        ] {
+            let timed = matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_));
+            let mut previous = 0.0;
+            for time in TIMES {
+                let (mut one_by_one, mut at_once) =
+                    (TreeDrawList::default(), TreeDrawList::default());
+                let by_group = leaves(&model, &v, &costs, method, &g, time, &mut one_by_one);
+                let whole = leaves_at_depth(&model, &v, &costs, method, depth, time, &mut at_once);
+                let case = format!("{method:?} at {depth} with {time}: {by_group:?} vs {whole:?}");
+                eprintln!(
+                    "{case} {:?} {:?}",
+                    drawn(&model, &one_by_one),
+                    drawn(&model, &at_once)
+                );
+                assert!(whole.cost.is_finite(), "{case}");
+                assert!(
+                    !timed || whole.cost <= time * 1.0001 || whole.truncated,
+                    "{case}"
+                );
+                assert!(
+                    whole.cost >= previous * 0.9999,
+                    "less with more time: {case}"
+                );
+                previous = whole.cost;
+                let (a, b) = (drawn(&model, &one_by_one), drawn(&model, &at_once));
+                assert!(b.2, "a group undrawn or a leaf twice: {case}");
+                // The predicted cost is what is drawn.
+                let triangle_leaf = costs.triangles(1, 0.0) * model.leaf_triangle_count() as f32
+                    / model.leaves.len() as f32;
+                let drawn_cost_floor = b.0 as f32 * triangle_leaf;
+                assert!(whole.cost >= drawn_cost_floor * 0.9999, "{case}");
+                match method {
+                    // Triangles alone: the same count, up to a leaf per group.
+                    LeafMethod::Tc | LeafMethod::Full | LeafMethod::Static(1) => {
+                        assert!(a.0.abs_diff(b.0) <= groups_count, "{case}: {a:?} vs {b:?}");
+                    }
+                    // One point size for the whole tree: the smallest whose static split
+                    // fits (group by group, remainders passed on mix two sizes). Only the
+                    // far points that fit, each group's at its largest size, otherwise.
+                    LeafMethod::Tclod(sizes)
+                        if !whole.truncated
+                            && b.1 > 0
+                            && at_once
+                                .leaf_points
+                                .iter()
+                                .all(|r| r.size == at_once.leaf_points[0].size) =>
+                    {
+                        let size = at_once.leaf_points[0].size;
+                        single_size_checks += 1;
+                        let split = |size| {
+                            let method = LeafMethod::Static(size);
+                            let mut list = TreeDrawList::default();
+                            leaves_at_depth(&model, &v, &costs, method, depth, time, &mut list)
+                        };
+                        assert_eq!(split(size).cost, whole.cost, "{case}");
+                        assert!(size == sizes.min || split(size - 1).cost > time, "{case}");
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    assert!(single_size_checks > 3, "{single_size_checks}");
+}

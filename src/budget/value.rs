@@ -85,6 +85,16 @@ impl ValueFunction {
     /// Every built-in value function, in paper order.
     pub const ALL: [Self; 4] = [Self::P8, Self::P9, Self::P10, Self::P11];
 
+    /// The power of the area in the function: the value of `k` times the area is `k^e`
+    /// times the value (1 for P-8, P-9 and P-10, ½ for P-11). The LOD uses it to value a
+    /// far tree's leaf groups, all at one depth, with one evaluation.
+    pub fn area_exponent(self) -> f32 {
+        match self {
+            Self::P8 | Self::P9 | Self::P10 => 1.0,
+            Self::P11 => 0.5,
+        }
+    }
+
     /// The paper's equation number.
     pub fn equation(self) -> &'static str {
         match self {
@@ -135,6 +145,17 @@ mod tests {
             depth,
             distance,
             importance,
+        }
+    }
+
+    #[test]
+    fn scaling_the_area_scales_the_value_by_the_area_exponent() {
+        for f in ValueFunction::ALL {
+            let one = f.value(&inputs(3.0, 40.0, 50.0, 0.5));
+            for k in [0.25_f32, 2.0, 7.0, 1000.0] {
+                let scaled = f.value(&inputs(3.0 * k, 40.0, 50.0, 0.5));
+                assert_relative_eq!(scaled, one * k.powf(f.area_exponent()), max_relative = 1e-5);
+            }
         }
     }
 

@@ -318,7 +318,36 @@ struct VisibleTree {
     model: AssetId<TreeModel>,
     view: TreeView,
     trunk_visible: bool,
+    /// The visible leaf groups in [`LodFrame::groups`]; empty when `leaf_depth` is set.
     groups: core::ops::Range<u32>,
+    /// Every leaf group at this depth: the tree is entirely in view and far compared with
+    /// its size (see [`UNIFORM_DEPTH_RADII`]).
+    leaf_depth: Option<f32>,
+}
+
+/// A tree entirely in view whose centre is at least this many bounding radii deep has
+/// its leaves valued and chosen as one, at the centre's depth
+/// ([`select::leaves_at_depth`]): every group's depth is then within an eighth of the
+/// centre's, and deciding once instead of group by group is what lets a large forest's
+/// LOD stages keep up.
+pub const UNIFORM_DEPTH_RADII: f32 = 8.0;
+
+/// What the stages need of a tree type, derived once when models change.
+struct ModelInfo {
+    /// Rank (simple → complex) and complexity of the trunk as an object.
+    trunk_rank: (u32, f32),
+    /// The same for the leaves.
+    leaves_rank: (u32, f32),
+    /// Centre and radius of the tree's bounding sphere, model space.
+    center: Vec3,
+    radius: f32,
+    /// Σ over the leaf groups of their leaf counts, and of the counts' square roots: the
+    /// value of all groups at one depth is one group's value per leaf times the sum of
+    /// counts to the value function's area exponent.
+    group_leaves: f32,
+    group_leaves_sqrt: f32,
+    /// What counting a draw list needs.
+    slot: ModelSlot,
 }
 
 /// The frame's working state, kept between frames to reuse its allocations.
@@ -345,10 +374,9 @@ struct LodFrame {
     previous: HashMap<(Entity, bool), u32>,
     next_previous: HashMap<(Entity, bool), u32>,
     scratch: TreeDrawList,
-    /// Complexity rank of each (model, leaves) object type; rebuilt when models change.
-    type_rank: HashMap<(AssetId<TreeModel>, bool), (u32, f32)>,
-    /// Per model, what counting a draw list needs (rebuilt with `type_rank`).
-    slots: HashMap<AssetId<TreeModel>, ModelSlot>,
+    /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
+    /// when models change.
+    infos: HashMap<AssetId<TreeModel>, ModelInfo>,
     ranked_version: Option<u64>,
     value_ms: f32,
     warned_target: bool,
@@ -365,10 +393,10 @@ fn give_draw_lists(
     }
 }
 
-fn object_types(
+fn model_infos(
     models: &Assets<TreeModel>,
     costs: &PrimitiveCosts,
-) -> HashMap<(AssetId<TreeModel>, bool), (u32, f32)> {
+) -> HashMap<AssetId<TreeModel>, ModelInfo> {
     // complexity(O): the full-detail time at one constant projected area for everyone.
     const AREA: f32 = 4.0;
     let mut types: Vec<((AssetId<TreeModel>, bool), f32)> = models
@@ -387,10 +415,29 @@ fn object_types(
         })
         .collect();
     types.sort_by(|a, b| a.1.total_cmp(&b.1));
-    types
+    let ranks: HashMap<(AssetId<TreeModel>, bool), (u32, f32)> = types
         .into_iter()
         .enumerate()
         .map(|(rank, (key, complexity))| (key, (rank as u32, complexity)))
+        .collect();
+    models
+        .iter()
+        .map(|(id, m)| {
+            let rank = |leaves| ranks.get(&(id, leaves)).copied().unwrap_or((0, 0.0));
+            let sizes = m.leaf_groups.iter().map(|g| g.leaves.len() as f32);
+            (
+                id,
+                ModelInfo {
+                    trunk_rank: rank(false),
+                    leaves_rank: rank(true),
+                    center: m.bounds.center(),
+                    radius: m.bounds.half_extents().length(),
+                    group_leaves: sizes.clone().sum(),
+                    group_leaves_sqrt: sizes.map(f32::sqrt).sum(),
+                    slot: ModelSlot::of(m),
+                },
+            )
+        })
         .collect()
 }
 
@@ -416,11 +463,7 @@ fn value_objects(
     };
     if frame.ranked_version != Some(version.0) {
         let costs = PrimitiveCosts::from_calibration(&cost_model.calibration, 1.0);
-        frame.type_rank = object_types(&models, &costs);
-        frame.slots = models
-            .iter()
-            .map(|(id, m)| (id, ModelSlot::of(m)))
-            .collect();
+        frame.infos = model_infos(&models, &costs);
         frame.ranked_version = Some(version.0);
     }
     let projection = view.projection();
@@ -451,40 +494,54 @@ fn value_objects(
         let Some(model) = models.get(&instance.model) else {
             continue;
         };
+        let Some(info) = frame.infos.get(&instance.model.id()) else {
+            continue;
+        };
         let transform = cull.transform;
         let scale = transform.matrix3.x_axis.length();
         let tree = frame.trees.len() as u32;
         let trunk_center = transform.transform_point3(model.trunk_area_center);
         let first_group = frame.groups.len() as u32;
         let leaf_area = select::mean_leaf_area(model) * scale * scale;
+        let center = transform.transform_point3(info.center);
+        let center_depth = view.depth(center);
+        let whole = matches!(visibility, InstanceVisibility::Full)
+            && !model.leaf_groups.is_empty()
+            && center_depth >= UNIFORM_DEPTH_RADII * info.radius * scale;
         let mut leaves_value = 0.0;
-        for (g, group) in model.leaf_groups.iter().enumerate() {
-            if !culling.result.group_visible(i, g) {
-                continue;
+        let mut leaf_depth = None;
+        if whole {
+            // Every group at the centre's depth and distance: one value per leaf, times
+            // the groups' leaf counts to the area's power (see `ModelInfo`).
+            let per_leaf = value_of(leaf_area, center, budget.leaf_importance);
+            let counts = if budget.value.area_exponent() == 1.0 {
+                info.group_leaves
+            } else {
+                info.group_leaves_sqrt
+            };
+            leaves_value = crate::budget::finite_value(per_leaf * counts);
+            leaf_depth = Some(center_depth.max(crate::budget::MIN_DEPTH));
+        } else {
+            for (g, group) in model.leaf_groups.iter().enumerate() {
+                if !culling.result.group_visible(i, g) {
+                    continue;
+                }
+                let center = transform.transform_point3(group.bounds.center);
+                let n = group.leaves.len() as f32;
+                leaves_value += value_of(n * leaf_area, center, budget.leaf_importance);
+                frame.groups.push(VisibleGroup {
+                    group: g as u32,
+                    depth: view.depth(center).max(crate::budget::MIN_DEPTH),
+                });
             }
-            let center = transform.transform_point3(group.bounds.center);
-            let n = group.leaves.len() as f32;
-            leaves_value += value_of(n * leaf_area, center, budget.leaf_importance);
-            frame.groups.push(VisibleGroup {
-                group: g as u32,
-                depth: view.depth(center).max(crate::budget::MIN_DEPTH),
-            });
         }
         let groups = first_group..frame.groups.len() as u32;
-        let id = instance.model.id();
-        let rank = |leaves: bool| {
-            frame
-                .type_rank
-                .get(&(id, leaves))
-                .copied()
-                .unwrap_or((0, 0.0))
-        };
         if trunk_visible && model.trunk_triangle_count() > 0 {
             let area = model.mean_trunk_triangle_area
                 * model.trunk_triangle_count() as f32
                 * scale
                 * scale;
-            let (r, c) = rank(false);
+            let (r, c) = info.trunk_rank;
             keyed.push((
                 r,
                 c,
@@ -495,13 +552,13 @@ fn value_objects(
                 value_of(area, trunk_center, budget.trunk_importance),
             ));
         }
-        if !groups.is_empty() {
-            let (r, c) = rank(true);
+        if !groups.is_empty() || leaf_depth.is_some() {
+            let (r, c) = info.leaves_rank;
             keyed.push((r, c, Object { tree, leaves: true }, leaves_value));
         }
         frame.trees.push(VisibleTree {
             entity,
-            model: id,
+            model: instance.model.id(),
             view: TreeView {
                 scale,
                 trunk_depth: view.depth(trunk_center).max(crate::budget::MIN_DEPTH),
@@ -509,6 +566,7 @@ fn value_objects(
             },
             trunk_visible,
             groups,
+            leaf_depth,
         });
     }
     // Simple → complex: types are few, so a stable sort by rank keeps it cheap and the
@@ -626,7 +684,6 @@ fn hand_out_time(
                 let Some(m) = models.get(tree.model) else {
                     continue;
                 };
-                let groups = &frame.groups[tree.groups.start as usize..tree.groups.end as usize];
                 let unlimited = budget.mode == LodMode::Unlimited;
                 if tree.trunk_visible {
                     predicted += if unlimited {
@@ -641,7 +698,7 @@ fn hand_out_time(
                 } else {
                     LeafMethod::Static(budget.point_sizes.min.max(1))
                 };
-                predicted += select::leaves(m, &tree.view, &costs, method, groups, 0.0, list).cost;
+                predicted += tree_leaves(m, tree, &frame.groups, &costs, method, 0.0, list).cost;
             }
         }
         LodMode::Tc | LodMode::Tclod => {
@@ -665,8 +722,7 @@ fn hand_out_time(
                     } else {
                         LeafMethod::Tc
                     };
-                    let g = &groups[tree.groups.start as usize..tree.groups.end as usize];
-                    select::leaves(m, &tree.view, &costs, method, g, given, list)
+                    tree_leaves(m, tree, groups, &costs, method, given, list)
                 } else if tclod {
                     select::trunk_tclod(m, &tree.view, &costs, budget.line_widths, given, list)
                 } else {
@@ -756,8 +812,8 @@ fn hand_out_time(
 
     let mut counts = PrimitiveCounts::default();
     for (tree, list) in frame.trees.iter().zip(&frame.lists) {
-        if let Some(slot) = frame.slots.get(&tree.model) {
-            counts += slot.counts(list);
+        if let Some(info) = frame.infos.get(&tree.model) {
+            counts += info.slot.counts(list);
         }
     }
     frame.last_uncorrected = Some((predicted + fixed) / factor);
@@ -779,6 +835,25 @@ fn hand_out_time(
         budget_stage_ms: start.elapsed().as_secs_f32() * 1000.0,
         select_stage_ms: 0.0,
     };
+}
+
+/// A tree's leaves by `method` with `time`: group by group, or all at one depth.
+fn tree_leaves(
+    model: &TreeModel,
+    tree: &VisibleTree,
+    groups: &[VisibleGroup],
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+    time: f32,
+    list: &mut TreeDrawList,
+) -> select::Selected {
+    match tree.leaf_depth {
+        Some(depth) => select::leaves_at_depth(model, &tree.view, costs, method, depth, time, list),
+        None => {
+            let groups = &groups[tree.groups.start as usize..tree.groups.end as usize];
+            select::leaves(model, &tree.view, costs, method, groups, time, list)
+        }
+    }
 }
 
 fn write_draw_lists(

@@ -11,6 +11,10 @@
 //! Every search runs in time independent of the number of segments or leaves (a few
 //! binary searches over the model's prefix arrays), so a frame's selection costs
 //! O(visible trees × visible leaf groups).
+//!
+//! Counts are rounded down (or to nearest) by `as` casts of non-negative values rather
+//! than `floor`/`round`, which on the baseline x86-64 target are library calls, and these
+//! run hundreds of thousands of times a frame in a large forest.
 
 use core::ops::Range;
 
@@ -201,7 +205,7 @@ pub fn trunk_tc(
     let area = trunk_cost_area(model, view, costs);
     let each = costs.triangles(1, area);
     let affordable = if each > 0.0 {
-        (time.max(0.0) / each).floor().min(total as f32) as u32
+        (time.max(0.0) / each).min(total as f32) as u32
     } else {
         total
     };
@@ -510,9 +514,9 @@ fn static_split(n: u32, area: f32, size: u32) -> (u32, bool, u32) {
     let wanted = area / (s * s);
     let nf = n as f32;
     if wanted < nf {
-        ((wanted.round() as u32).clamp(1, n), true, 0)
+        (((wanted + 0.5) as u32).clamp(1, n), true, 0)
     } else if wanted < 2.0 * nf {
-        let points = ((2.0 * nf - wanted).round() as u32).min(n);
+        let points = ((2.0 * nf - wanted + 0.5) as u32).min(n);
         (points, false, n - points)
     } else {
         (0, false, n)
@@ -572,7 +576,7 @@ fn group_tc(
 ) -> Selected {
     let n = leaves.end - leaves.start;
     let affordable = if triangle_leaf > 0.0 {
-        (time / triangle_leaf).floor().min(n as f32) as u32
+        (time / triangle_leaf).min(n as f32) as u32
     } else {
         n
     };
@@ -584,34 +588,54 @@ fn group_tc(
     }
 }
 
-/// TCLOD group: the smallest point size (best quality) whose static split fits; at the
-/// largest size, only the far points that fit, at least one.
-fn group_tclod(
-    leaves: &Range<u32>,
+/// The largest point size for a group projecting `group_area` pixels: no point is larger
+/// than the group on screen.
+fn largest_point(group_area: f32, sizes: PixelRange) -> u32 {
+    let min = sizes.min.max(1);
+    (group_area.max(0.0).sqrt() as u32).clamp(min, sizes.max.max(min))
+}
+
+/// What TCLOD draws of `n` leaves projecting `area` pixels, given `time`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum TclodChoice {
+    /// The static split at this point size.
+    Split(u32),
+    /// Only this many far points (at least one) at the largest size.
+    FarPoints { size: u32, count: u32 },
+}
+
+/// TCLOD's decision for `n` leaves projecting `area` pixels: the smallest point size (best
+/// quality) whose static split fits; at the largest size, only the far points that fit,
+/// at least one. No point is larger than a group on screen (`group_area` pixels).
+fn tclod_choice(
+    n: u32,
     area: f32,
+    group_area: f32,
     triangle_leaf: f32,
     costs: &PrimitiveCosts,
     sizes: PixelRange,
     time: f32,
-    out: &mut TreeDrawList,
-) -> Selected {
-    let n = leaves.end - leaves.start;
+) -> (TclodChoice, Selected) {
     let min = sizes.min.max(1);
-    // No point larger than the whole group on screen.
-    let max = (area.max(0.0).sqrt().floor() as u32).clamp(min, sizes.max.max(min));
+    let max = largest_point(group_area, sizes);
     let cost_at = |size: u32| {
         let (points, _, tris) = static_split(n, area, size);
         costs.points(size, points) + triangle_leaf * tris as f32
     };
+    let fits = |size: u32| {
+        let cost = cost_at(size);
+        (cost <= time).then_some((
+            TclodChoice::Split(size),
+            Selected {
+                cost,
+                truncated: false,
+            },
+        ))
+    };
     // Full detail when every leaf fits as a triangle and the group is big enough on
     // screen to want it at the smallest size.
-    if cost_at(min) <= time {
-        let (points, far, tris) = static_split(n, area, min);
-        write_group(leaves, points, far, tris, min, out);
-        return Selected {
-            cost: cost_at(min),
-            truncated: false,
-        };
+    if let Some(chosen) = fits(min) {
+        return chosen;
     }
     // Cost falls as the size grows: the smallest size that fits.
     let (mut lo, mut hi) = (min, max);
@@ -623,24 +647,181 @@ fn group_tclod(
             lo = mid + 1;
         }
     }
-    if cost_at(lo) <= time {
-        let (points, far, tris) = static_split(n, area, lo);
-        write_group(leaves, points, far, tris, lo, out);
-        return Selected {
-            cost: cost_at(lo),
-            truncated: false,
-        };
+    if let Some(chosen) = fits(lo) {
+        return chosen;
     }
     let each = costs.points(max, 1);
     let affordable = if each > 0.0 {
-        (time / each).floor().min(n as f32) as u32
+        (time / each).min(n as f32) as u32
     } else {
         n
     };
     let count = affordable.max(1);
-    write_group(leaves, count, true, 0, max, out);
+    (
+        TclodChoice::FarPoints { size: max, count },
+        Selected {
+            cost: each * count as f32,
+            truncated: affordable == 0,
+        },
+    )
+}
+
+/// TCLOD group: [`tclod_choice`] for one group, written.
+fn group_tclod(
+    leaves: &Range<u32>,
+    area: f32,
+    triangle_leaf: f32,
+    costs: &PrimitiveCosts,
+    sizes: PixelRange,
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Selected {
+    let n = leaves.end - leaves.start;
+    let (choice, selected) = tclod_choice(n, area, area, triangle_leaf, costs, sizes, time);
+    match choice {
+        TclodChoice::Split(size) => {
+            let (points, far, tris) = static_split(n, area, size);
+            write_group(leaves, points, far, tris, size, out);
+        }
+        TclodChoice::FarPoints { size, count } => write_group(leaves, count, true, 0, size, out),
+    }
+    selected
+}
+
+/// A tree's leaves, all at one depth: the choice [`leaves`] makes group by group, made
+/// once for the whole tree and spread over its groups in proportion to their leaves.
+///
+/// For a tree entirely in view and far compared with its size, every group is at about
+/// the depth of the tree's centre, so each group would get time in proportion to its
+/// leaves and choose the same point size: deciding once costs O(1) instead of a search
+/// per group, and writing the groups' runs O(groups). The totals (and so the predicted
+/// cost) are exactly the tree-level decision's; a group's share is rounded so that the
+/// shares add up. The cheapest representation is one leaf per group, as group by group,
+/// although a small group's share of it may go to a larger one.
+pub fn leaves_at_depth(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+    depth: f32,
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Selected {
+    out.leaf_triangles.clear();
+    out.leaf_points.clear();
+    let groups = &model.leaf_groups;
+    let n: u32 = groups.iter().map(|g| g.leaves.end - g.leaves.start).sum();
+    let non_empty = groups.iter().filter(|g| !g.leaves.is_empty()).count() as u32;
+    if n == 0 {
+        return Selected::default();
+    }
+    let triangles_per_leaf = model.leaf_triangle_count() as f32 / model.leaves.len().max(1) as f32;
+    let area = group_area(model, view, n, depth);
+    let area = if area.is_finite() { area } else { 0.0 };
+    // Charged for at most a screenful of fill, as in `leaves`.
+    let charged = if area > costs.max_pixels {
+        costs.max_pixels / area
+    } else {
+        1.0
+    };
+    let leaf_pixels = area * charged / n as f32 / triangles_per_leaf.max(1.0);
+    let triangle_leaf = costs.triangles(1, leaf_pixels) * triangles_per_leaf;
+    let time = time.max(0.0);
+    let mut far_points_sizes = None;
+    // The tree's (points, from the far end, triangle leaves, point size).
+    let (mut points, far, mut tris, size) = match method {
+        LeafMethod::Full => (0, true, n, 1),
+        LeafMethod::Tc => {
+            let affordable = if triangle_leaf > 0.0 {
+                (time / triangle_leaf).min(n as f32) as u32
+            } else {
+                n
+            };
+            (0, true, affordable, 1)
+        }
+        LeafMethod::Static(size) => {
+            let (points, far, tris) = static_split(n, area, size);
+            (points, far, tris, size)
+        }
+        LeafMethod::Tclod(sizes) => {
+            let mean_group = area / non_empty.max(1) as f32;
+            match tclod_choice(n, area, mean_group, triangle_leaf, costs, sizes, time) {
+                (TclodChoice::Split(size), _) => {
+                    let (points, far, tris) = static_split(n, area, size);
+                    (points, far, tris, size)
+                }
+                (TclodChoice::FarPoints { size, count }, _) => {
+                    // Each group's points at its own largest size, as group by group.
+                    far_points_sizes = Some(sizes);
+                    (count, true, 0, size)
+                }
+            }
+        }
+    };
+    // Group by group, every group draws at least one leaf: so does every group here.
+    let mixed = points > 0 && tris > 0;
+    if !mixed {
+        points = if points > 0 { points.max(non_empty) } else { 0 };
+        tris = if tris > 0 || points == 0 {
+            tris.max(non_empty)
+        } else {
+            0
+        };
+    }
+    // Shares of a total over the groups by cumulative rounding, so that they add up to it:
+    // in proportion to the groups' leaves, or one each and the rest in proportion to
+    // their other leaves (never more than a group has). `total · upto / count` rounded
+    // down, in floating point because integer division per group is what this path is
+    // too busy for: the exact quotients are multiples of `1 / count`, so adding half of
+    // that before rounding down is exact.
+    let upto = |total: u32, upto: u64, count: u64| {
+        let count = count as f64;
+        (total as f64 * upto as f64 / count + 0.5 / count) as u32
+    };
+    let spare = (n - non_empty) as u64;
+    let proportional = |total: u32, before: u64, after: u64| {
+        upto(total, after, n as u64) - upto(total, before, n as u64)
+    };
+    let one_each = |total: u32, before: u64, after: u64| {
+        if spare == 0 {
+            return 1;
+        }
+        let rest = total.saturating_sub(non_empty);
+        1 + upto(rest, after, spare) - upto(rest, before, spare)
+    };
+    let (mut before, mut before_spare) = (0_u64, 0_u64);
+    let mut cost = 0.0;
+    for group in groups {
+        let len = (group.leaves.end - group.leaves.start) as u64;
+        if len == 0 {
+            continue;
+        }
+        let (after, after_spare) = (before + len, before_spare + len - 1);
+        let (group_points, group_tris) = if mixed {
+            let p = proportional(points, before, after);
+            (p, len as u32 - p)
+        } else if points > 0 {
+            (one_each(points, before_spare, after_spare), 0)
+        } else {
+            (0, one_each(tris, before_spare, after_spare))
+        };
+        let group_size = match far_points_sizes {
+            Some(sizes) => largest_point(area * len as f32 / n as f32, sizes),
+            None => size,
+        };
+        cost += costs.points(group_size, group_points) + triangle_leaf * group_tris as f32;
+        write_group(
+            &group.leaves,
+            group_points,
+            far,
+            group_tris,
+            group_size,
+            out,
+        );
+        (before, before_spare) = (after, after_spare);
+    }
     Selected {
-        cost: each * count as f32,
-        truncated: affordable == 0,
+        cost,
+        truncated: matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_)) && cost > time,
     }
 }
