@@ -417,6 +417,34 @@ pub fn group_area(model: &TreeModel, view: &TreeView, leaves: u32, depth: f32) -
     leaves as f32 * mean_leaf_area(model) * p * p * LEAF_FACING
 }
 
+/// What drawing a leaf as triangles costs in one tree, whose leaves project `tree_area`
+/// pixels in all.
+struct LeafTriangles {
+    per_leaf: f32,
+    /// The share of projected pixels charged: a tree's leaves together cover at most a
+    /// screenful (the LOD decisions still see the projected areas).
+    charged: f32,
+}
+
+impl LeafTriangles {
+    fn of(model: &TreeModel, costs: &PrimitiveCosts, tree_area: f32) -> Self {
+        Self {
+            per_leaf: model.leaf_triangle_count() as f32 / model.leaves.len().max(1) as f32,
+            charged: if tree_area > costs.max_pixels {
+                costs.max_pixels / tree_area
+            } else {
+                1.0
+            },
+        }
+    }
+
+    /// The time of one leaf as triangles, in a group of `n` leaves projecting `area`.
+    fn per_leaf(&self, costs: &PrimitiveCosts, area: f32, n: u32) -> f32 {
+        let pixels = area * self.charged / n as f32 / self.per_leaf.max(1.0);
+        costs.triangles(1, pixels) * self.per_leaf
+    }
+}
+
 /// How the leaves of a tree are chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LeafMethod {
@@ -444,7 +472,6 @@ pub fn leaves(
 ) -> Selected {
     out.leaf_triangles.clear();
     out.leaf_points.clear();
-    let triangles_per_leaf = model.leaf_triangle_count() as f32 / model.leaves.len().max(1) as f32;
     let mut area_left: f32 = groups
         .iter()
         .map(|g| {
@@ -453,13 +480,7 @@ pub fn leaves(
         })
         .filter(|a| a.is_finite())
         .sum();
-    // The tree's leaves together cover at most a screenful: triangles are charged for
-    // their share of it (the LOD decisions still see the projected areas).
-    let charged = if area_left > costs.max_pixels {
-        costs.max_pixels / area_left
-    } else {
-        1.0
-    };
+    let leaf_cost = LeafTriangles::of(model, costs, area_left);
     let mut time_left = time.max(0.0);
     let mut total = Selected::default();
     for g in groups {
@@ -477,8 +498,7 @@ pub fn leaves(
         };
         area_left -= area;
         let given = time_left * share;
-        let leaf_pixels = area * charged / n as f32 / triangles_per_leaf.max(1.0);
-        let triangle_leaf = costs.triangles(1, leaf_pixels) * triangles_per_leaf;
+        let triangle_leaf = leaf_cost.per_leaf(costs, area, n);
         let chosen = match method {
             LeafMethod::Tc => group_tc(&leaves, triangle_leaf, given, out),
             LeafMethod::Full => {
@@ -715,17 +735,9 @@ pub fn leaves_at_depth(
     if n == 0 {
         return Selected::default();
     }
-    let triangles_per_leaf = model.leaf_triangle_count() as f32 / model.leaves.len().max(1) as f32;
     let area = group_area(model, view, n, depth);
     let area = if area.is_finite() { area } else { 0.0 };
-    // Charged for at most a screenful of fill, as in `leaves`.
-    let charged = if area > costs.max_pixels {
-        costs.max_pixels / area
-    } else {
-        1.0
-    };
-    let leaf_pixels = area * charged / n as f32 / triangles_per_leaf.max(1.0);
-    let triangle_leaf = costs.triangles(1, leaf_pixels) * triangles_per_leaf;
+    let triangle_leaf = LeafTriangles::of(model, costs, area).per_leaf(costs, area, n);
     let time = time.max(0.0);
     let mut far_points_sizes = None;
     // The tree's (points, from the far end, triangle leaves, point size).
