@@ -24,6 +24,44 @@ fn until_culled(app: &mut App) {
     panic!("the forest never finished loading");
 }
 
+/// Where the wind tests look from: across the forest from just outside a corner, so trees
+/// are from ~10 m to a forest side away.
+const CORNER_EYE: Vec3 = Vec3::new(-5.0, 20.0, -5.0);
+
+/// A forest of `trees` seen from [`CORNER_EYE`], visible, with 1/20 s per update.
+fn forest_in_wind(trees: u32) -> App {
+    let (mut app, size) = common::forest_of(trees);
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        std::time::Duration::from_millis(50),
+    ));
+    common::look_from(&mut app, CORNER_EYE, Vec3::new(size / 2.0, 0.0, size / 2.0));
+    common::until_visible(&mut app);
+    app
+}
+
+/// Two seconds of wind.
+fn blow(app: &mut App) {
+    for _ in 0..40 {
+        app.update();
+    }
+}
+
+/// Edits the default spring set in place.
+fn edit_spring_set(app: &mut App, edit: impl FnOnce(&mut bevy_sherwood::wind::SpringSet)) {
+    let set = app
+        .world()
+        .resource::<bevy_sherwood::wind::WindSettings>()
+        .sets[0]
+        .clone();
+    edit(
+        &mut app
+            .world_mut()
+            .resource_mut::<Assets<bevy_sherwood::wind::SpringSet>>()
+            .get_mut(&set)
+            .unwrap(),
+    );
+}
+
 fn count<C: Component>(app: &mut App) -> usize {
     app.world_mut().query::<&C>().iter(app.world()).count()
 }
@@ -191,28 +229,14 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
 
 #[test]
 fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
-    use bevy::time::TimeUpdateStrategy;
-    use bevy_sherwood::wind::{RingOffsetTable, SpringSet, WindSettings, WindStats};
+    use bevy_sherwood::wind::{RingOffsetTable, WindStats};
 
-    let (mut app, size) = common::forest_of(600);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(
-        std::time::Duration::from_millis(50),
-    ));
-    // Across the forest from just outside a corner: trees from ~10 m to ~300 m away.
-    let eye = Vec3::new(-5.0, 20.0, -5.0);
-    common::look_from(&mut app, eye, Vec3::new(size / 2.0, 0.0, size / 2.0));
-    common::until_visible(&mut app);
+    let mut app = forest_in_wind(600);
+    let eye = CORNER_EYE;
     // With the shipped half-pixel threshold every tip of this forest moves a visible
     // amount; a coarser threshold puts the boundary inside it.
-    let set = app.world().resource::<WindSettings>().sets[0].clone();
-    app.world_mut()
-        .resource_mut::<Assets<SpringSet>>()
-        .get_mut(&set)
-        .unwrap()
-        .pixel_threshold = 6.0;
-    for _ in 0..40 {
-        app.update(); // two seconds of wind
-    }
+    edit_spring_set(&mut app, |set| set.pixel_threshold = 6.0);
+    blow(&mut app);
     let stats = *app.world().resource::<WindStats>();
     assert!(stats.moved > 0 && stats.skipped > 0, "{stats:?}");
     let table = app.world().resource::<RingOffsetTable>().clone();
@@ -258,54 +282,31 @@ fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
 
 #[test]
 fn edited_association_rules_take_effect_on_the_next_frame() {
-    use bevy::time::TimeUpdateStrategy;
-    use bevy_sherwood::wind::{RingOffsetTable, SpringSet, WindSettings};
+    use bevy_sherwood::wind::RingOffsetTable;
 
-    let (mut app, size) = common::forest_of(60);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(
-        std::time::Duration::from_millis(50),
-    ));
-    let eye = Vec3::new(-5.0, 20.0, -5.0);
-    common::look_from(&mut app, eye, Vec3::new(size / 2.0, 0.0, size / 2.0));
-    common::until_visible(&mut app);
-    for _ in 0..40 {
-        app.update(); // two seconds of wind
-    }
+    let mut app = forest_in_wind(60);
+    blow(&mut app);
     let moves = |app: &App| {
         let table = app.world().resource::<RingOffsetTable>();
         table.offsets.iter().any(|o| *o != Vec3::ZERO)
     };
     assert!(moves(&app));
     // Rings follow 0% of their spring from now on.
-    let set = app.world().resource::<WindSettings>().sets[0].clone();
-    for rule in &mut app
-        .world_mut()
-        .resource_mut::<Assets<SpringSet>>()
-        .get_mut(&set)
-        .unwrap()
-        .rules
-    {
-        rule.influence = 0.0;
-    }
+    edit_spring_set(&mut app, |set| {
+        for rule in &mut set.rules {
+            rule.influence = 0.0;
+        }
+    });
     app.update();
     assert!(!moves(&app), "the rings still follow the old rules");
 }
 
 #[test]
 fn slowly_moving_trees_are_updated_less_often_and_hold_their_bend_in_between() {
-    use bevy::time::TimeUpdateStrategy;
     use bevy_sherwood::wind::{RingOffsetTable, WindSettings, WindStats};
 
-    let (mut app, size) = common::forest_of(600);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(
-        std::time::Duration::from_millis(50),
-    ));
-    let eye = Vec3::new(-5.0, 20.0, -5.0);
-    common::look_from(&mut app, eye, Vec3::new(size / 2.0, 0.0, size / 2.0));
-    common::until_visible(&mut app);
-    for _ in 0..40 {
-        app.update(); // two seconds of wind
-    }
+    let mut app = forest_in_wind(600);
+    blow(&mut app);
     let slices = |app: &App| {
         let table = app.world().resource::<RingOffsetTable>();
         table
