@@ -2,8 +2,10 @@
 //! moving tree) in a headless app, timed by the stage's own clock (`WindStats::update_ms`),
 //! with simulated time advancing 1/60 s per frame.
 //!
-//! - `wind/per_tree/SPECIES/ring_offsets` and `.../moved_bounds`: the pure per-instance
-//!   work for one tree of each shipped species (the stage's floor).
+//! - `wind/per_tree/SPECIES/ring_offsets`, `.../ring_offsets_thresholded` and
+//!   `.../moved_bounds`: the pure per-instance work for one tree of each shipped species
+//!   (the stage's floor), with every movement applied and with sub-centimetre movements
+//!   accumulated (the stage's half-pixel threshold at about 50 m).
 //! - `wind/2000_visible/every_tree_moves_every_frame`: 2 000 trees in view across the
 //!   forest from a corner, both levels of detail off (pixel threshold 0, every moving
 //!   tree updated every frame): the worst case.
@@ -83,8 +85,21 @@ fn per_tree(c: &mut Criterion) {
                 );
             });
         });
+        // The stage passes a threshold of half a pixel: a centimetre or so at 50 m.
+        group.bench_function(format!("{name}/ring_offsets_thresholded"), |b| {
+            b.iter(|| {
+                ring_offsets(
+                    &rig,
+                    black_box(&springs),
+                    Quat::from_rotation_y(0.3),
+                    1.1,
+                    0.01,
+                    &mut offsets,
+                );
+            });
+        });
         group.bench_function(format!("{name}/moved_bounds"), |b| {
-            b.iter(|| moved_bounds(&model, black_box(&offsets), &mut shape));
+            b.iter(|| moved_bounds(&rig, black_box(&offsets), &mut shape));
         });
     }
     group.finish();

@@ -223,7 +223,7 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
     app.update();
     let table = app.world().resource::<RingOffsetTable>();
     assert_eq!(table.moved, 0);
-    assert!(table.offsets.iter().all(|o| *o == Vec3::ZERO));
+    assert!(table.offsets.iter().all(|o| *o == Vec3A::ZERO));
     assert!(app.world().resource::<ForestCulling>().moved.is_empty());
 }
 
@@ -264,7 +264,7 @@ fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
             moved.push(distance);
         } else {
             assert!(
-                offsets.iter().all(|o| *o == Vec3::ZERO),
+                offsets.iter().all(|o| *o == Vec3A::ZERO),
                 "still tree {i} moved"
             );
             still.push(distance);
@@ -288,7 +288,7 @@ fn edited_association_rules_take_effect_on_the_next_frame() {
     blow(&mut app);
     let moves = |app: &App| {
         let table = app.world().resource::<RingOffsetTable>();
-        table.offsets.iter().any(|o| *o != Vec3::ZERO)
+        table.offsets.iter().any(|o| *o != Vec3A::ZERO)
     };
     assert!(moves(&app));
     // Rings follow 0% of their spring from now on.

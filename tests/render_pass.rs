@@ -569,14 +569,14 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
     let rings = model.rings.len();
     // Every ring but the root moves 0.5 m along +X: the column leans as one piece above
     // its first ring.
-    let offsets: Vec<Vec3> = model
+    let offsets: Vec<Vec3A> = model
         .rings
         .iter()
         .map(|r| {
             if r.is_root() {
-                Vec3::ZERO
+                Vec3A::ZERO
             } else {
-                Vec3::X * 0.5
+                Vec3A::X * 0.5
             }
         })
         .collect();

@@ -2,7 +2,7 @@
 
 mod common;
 
-use bevy::math::{Quat, Vec3};
+use bevy::math::{Quat, Vec3, Vec3A};
 use bevy_sherwood::tree::TreeModel;
 use bevy_sherwood::wind::*;
 
@@ -75,12 +75,13 @@ fn root_stays_lengths_are_kept_and_angles_limited() {
         );
         for (r, ring) in m.rings.iter().enumerate() {
             if ring.is_root() {
-                assert_eq!(offsets[r], Vec3::ZERO);
+                assert_eq!(offsets[r], Vec3A::ZERO);
                 continue;
             }
             let p = ring.parent as usize;
             let rest = ring.center - m.rings[p].center;
-            let moved = (ring.center + offsets[r]) - (m.rings[p].center + offsets[p]);
+            let moved = (ring.center + Vec3::from(offsets[r]))
+                - (m.rings[p].center + Vec3::from(offsets[p]));
             assert!(
                 (moved.length() - rest.length()).abs() <= 0.01 * rest.length() + 1e-5,
                 "ring {r}"
@@ -135,7 +136,7 @@ fn small_movements_accumulate_until_they_show() {
     let motions = associate(&m, &rules(), 2);
     let wind = [Vec3::new(0.05, 0.0, 0.0), Vec3::new(0.05, 0.0, 0.0)];
     // Rings that move relative to their parent (not just carried along).
-    let moving = |o: &[Vec3]| {
+    let moving = |o: &[Vec3A]| {
         m.rings
             .iter()
             .enumerate()
@@ -160,7 +161,7 @@ fn small_movements_accumulate_until_they_show() {
         "accumulated movement shows further out"
     );
     assert_eq!(moving(&nothing), 0);
-    assert!(nothing.iter().all(|o| *o == Vec3::ZERO));
+    assert!(nothing.iter().all(|o| *o == Vec3A::ZERO));
 }
 
 #[test]
@@ -168,8 +169,9 @@ fn moved_bounds_follow_the_rings() {
     let m = model();
     let motions = associate(&m, &rules(), 2);
     let mut offsets = Vec::new();
+    let rig = WindRig::new(&m, &motions);
     ring_offsets(
-        &WindRig::new(&m, &motions),
+        &rig,
         &[Vec3::new(5.0, 0.0, 0.0); 2],
         Quat::IDENTITY,
         1.0,
@@ -177,17 +179,17 @@ fn moved_bounds_follow_the_rings() {
         &mut offsets,
     );
     let mut shape = bevy_sherwood::culling::CullShape::from(&m);
-    moved_bounds(&m, &offsets, &mut shape);
+    moved_bounds(&rig, &offsets, &mut shape);
     // Every vertex where the GPU puts it: trunk vertices with their ring, leaf vertices
     // with their group's ring.
     for (p, &ring) in m.trunk_positions.iter().zip(&m.trunk_vertex_ring) {
-        let moved = *p + offsets[ring as usize];
+        let moved = *p + Vec3::from(offsets[ring as usize]);
         assert!(shape.trunk.contains(moved, 1e-3), "trunk vertex {moved}");
         assert!(shape.bounds.contains(moved, 1e-3));
     }
     for (p, &leaf) in m.leaf_positions.iter().zip(&m.leaf_vertex_leaf) {
         let g = m.leaves[leaf as usize].group as usize;
-        let moved = *p + offsets[m.leaf_groups[g].ring as usize];
+        let moved = *p + Vec3::from(offsets[m.leaf_groups[g].ring as usize]);
         let sphere = shape.groups[g];
         assert!(
             sphere.center.distance(moved) <= sphere.radius * 1.001 + 1e-4,

@@ -322,7 +322,7 @@ fn extract_forest(
         if let (Some((table, _)), Some(&i)) = (moving, ring_index.get(&entity)) {
             let (start, end) = (table.starts[i as usize], table.starts[i as usize + 1]);
             let slice = &table.offsets[start as usize..end as usize];
-            if slice.len() == slot.rings as usize && slice.iter().any(|o| *o != Vec3::ZERO) {
+            if slice.len() == slot.rings as usize && slice.iter().any(|o| *o != Vec3A::ZERO) {
                 ring_base = frame.ring_offsets.len() as u32;
                 frame
                     .ring_offsets

@@ -1,7 +1,7 @@
 //! Moving a tree's ring hierarchy with springs (thesis §5.3.2): which ring follows which
 //! spring, and the per-ring offsets of one instance for the renderer's ring-offset table.
 
-use bevy::math::{Quat, Vec3};
+use bevy::math::{Quat, Vec3, Vec3A, Vec4};
 use serde::{Deserialize, Serialize};
 
 use crate::culling::CullShape;
@@ -108,17 +108,22 @@ fn has_moving_ancestor(motions: &[RingMotion], model: &TreeModel, mut ring: u32)
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct WindRig {
     rings: Vec<RigRing>,
+    /// Each ring's sphere at rest: centre (`xyz`) and half its diameter (`w`), packed for
+    /// [`moved_bounds`].
+    ring_spheres: Vec<Vec4>,
+    /// Each leaf group's sphere at rest and the ring that carries it.
+    leaf_groups: Vec<(BoundingSphere, u32)>,
     reach: f32,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct RigRing {
+    /// Unit direction from the parent's centre to this ring's, at rest.
+    from: Vec3A,
     /// [`NO_RING`] for a root ring.
     parent: u32,
     /// [`NO_SPRING`] for a ring that only carries its parent's offset.
     spring: u32,
-    /// Unit direction from the parent's centre to this ring's, at rest.
-    from: Vec3,
     /// Distance from the parent's centre, at rest.
     length: f32,
     influence: f32,
@@ -159,7 +164,7 @@ impl WindRig {
                         (Some(s), Some(_)) if !ring.is_root() => s,
                         _ => NO_SPRING,
                     },
-                    from: from.unwrap_or(Vec3::ZERO),
+                    from: from.map_or(Vec3A::ZERO, Vec3A::from),
                     length,
                     influence: motion.influence,
                     cos_max_angle,
@@ -188,7 +193,20 @@ impl WindRig {
             path_influence[r] = carried + own;
         }
         let reach = path_influence.iter().copied().fold(0.0, f32::max);
-        Self { rings, reach }
+        Self {
+            rings,
+            ring_spheres: model
+                .rings
+                .iter()
+                .map(|ring| ring.center.extend(ring.diameter * 0.5))
+                .collect(),
+            leaf_groups: model
+                .leaf_groups
+                .iter()
+                .map(|g| (g.bounds, g.ring))
+                .collect(),
+            reach,
+        }
     }
 
     /// How far the farthest-moving ring moves per unit of spring displacement (small
@@ -229,14 +247,18 @@ impl Default for RingMotion {
 /// less. A ring pivots rigidly on its parent towards its spring's push (scaled by its
 /// influence) by at most its maximum angle; a ring's own movement smaller than
 /// `threshold` (model units) is not applied but accumulated along its path until it is
-/// — the thesis' fix for jerky tips; 0 applies everything. Root rings never move.
+/// — the thesis' fix for jerky tips; 0 applies everything. Root rings never move, and
+/// neither do rings whose spring is missing or not finite.
+///
+/// `offsets` gets one entry per ring (SIMD-width vectors: the renderer pads each offset
+/// to four floats anyway).
 pub fn ring_offsets(
     rig: &WindRig,
     springs: &[Vec3],
     rotation: Quat,
     scale: f32,
     threshold: f32,
-    offsets: &mut Vec<Vec3>,
+    offsets: &mut Vec<Vec3A>,
 ) {
     let scale = if scale.is_finite() && scale > 0.0 {
         scale
@@ -245,9 +267,9 @@ pub fn ring_offsets(
     };
     // Springs are few and rings many: bring each spring into model space once.
     let to_model = rotation.inverse();
-    let mut local = [Vec3::ZERO; LOCAL_SPRINGS];
-    let local_springs: Vec<Vec3>;
-    let local: &[Vec3] = if springs.len() <= LOCAL_SPRINGS {
+    let mut local = [Vec3A::ZERO; LOCAL_SPRINGS];
+    let local_springs: Vec<Vec3A>;
+    let local: &[Vec3A] = if springs.len() <= LOCAL_SPRINGS {
         for (l, s) in local.iter_mut().zip(springs) {
             *l = to_model_space(to_model, scale, *s);
         }
@@ -264,20 +286,27 @@ pub fn ring_offsets(
     // The second half holds each ring's movement not yet applied (below the threshold),
     // so that no allocation is made per instance; it is cut off at the end.
     offsets.clear();
-    offsets.resize(2 * n, Vec3::ZERO);
+    offsets.resize(2 * n, Vec3A::ZERO);
     let (applied, pending) = offsets.split_at_mut(n);
+    // Two passes: each ring's own bend does not depend on any other ring's, so the first
+    // pass runs at the processor's throughput; the second carries offsets down the paths,
+    // a chain from ring to ring kept as short as it can be.
+    for (own, ring) in pending.iter_mut().zip(&rig.rings) {
+        if let Some(&push) = local.get(ring.spring as usize) {
+            *own = bend(ring, push * ring.influence);
+        }
+    }
     for (r, ring) in rig.rings.iter().enumerate() {
         let p = ring.parent as usize;
         if p >= n {
             continue;
         }
-        let own = match local.get(ring.spring as usize) {
-            Some(&push) if push.is_finite() => bend(ring, push * ring.influence),
-            _ => Vec3::ZERO,
-        };
-        let accumulated = pending[p] + own;
+        // `pending[r]` still holds the ring's own bend; `pending[p]`, what its parent
+        // left unapplied.
+        let accumulated = pending[p] + pending[r];
         if accumulated.length_squared() >= threshold_squared {
             applied[r] = applied[p] + accumulated;
+            pending[r] = Vec3A::ZERO;
         } else {
             applied[r] = applied[p];
             pending[r] = accumulated;
@@ -290,61 +319,81 @@ pub fn ring_offsets(
 const LOCAL_SPRINGS: usize = 16;
 
 /// A world-space displacement in an instance's model space: `to_model` is the inverse of
-/// its rotation, `scale` its scale. (Dividing the quaternion by the scale instead would
-/// divide the result by the scale's square: rotating by a quaternion is quadratic in it.)
-fn to_model_space(to_model: Quat, scale: f32, displacement: Vec3) -> Vec3 {
+/// its rotation, `scale` its scale; zero for a displacement that is not finite. (Dividing
+/// the quaternion by the scale instead would divide the result by the scale's square:
+/// rotating by a quaternion is quadratic in it.)
+fn to_model_space(to_model: Quat, scale: f32, displacement: Vec3) -> Vec3A {
     if displacement.is_finite() {
-        to_model * displacement / scale
+        to_model * Vec3A::from(displacement) / scale
     } else {
-        Vec3::NAN
+        Vec3A::ZERO
     }
 }
 
 /// How far a ring moves when `push` bends its segment on the parent, rigidly (its length
 /// kept) and by at most its limit angle. Within the limit the segment simply points along
-/// `rest + push`; past it, it turns by the limit towards that direction — no
-/// trigonometry per ring.
-fn bend(ring: &RigRing, push: Vec3) -> Vec3 {
-    if push.length_squared() < ring.linear_below_squared {
+/// `rest + push`; past it, it turns by the limit towards that direction; a push up to
+/// [`LINEAR_PUSH`] of the length bends it by the first-order rotation. No push (also on a
+/// ring with no small-push range) moves nothing.
+///
+/// Every case is `v·a + from·b` for `v = rest + push` and two scalars, and both are worked
+/// out for every case and then picked, without branches or trigonometry: which case a ring
+/// falls in changes from ring to ring and frame to frame, and a mispredicted branch costs
+/// more than the arithmetic.
+fn bend(ring: &RigRing, push: Vec3A) -> Vec3A {
+    let length = ring.length;
+    let v = ring.from * length + push;
+    let along = ring.from.dot(v);
+    let v_squared = v.length_squared();
+    // Within the limit: the segment points along `v`.
+    let v_inverse = v_squared.sqrt().recip();
+    // Past it: `from` turned by the limit towards `v` within their plane.
+    let across_inverse = (v_squared - along * along).max(0.0).sqrt().recip();
+    let limited_a = length * ring.sin_max_angle * across_inverse;
+    let limited_b = length * (ring.cos_max_angle - 1.0) - limited_a * along;
+    let (a, b) = if push.length_squared() <= ring.linear_below_squared {
         // Small push: the first-order rotation (the push across the segment).
-        return push - ring.from * ring.from.dot(push);
-    }
-    let rest = ring.from * ring.length;
-    let Some(to) = (rest + push).try_normalize() else {
-        return Vec3::ZERO;
-    };
-    let cos = ring.from.dot(to);
-    let direction = if cos >= ring.cos_max_angle {
-        to
+        (1.0, -along)
+    } else if !(v_inverse.is_finite()) {
+        // Pushed back onto the parent: no direction to point the segment at.
+        (0.0, 0.0)
+    } else if along * v_inverse >= ring.cos_max_angle {
+        (length * v_inverse, -length)
+    } else if across_inverse.is_finite() {
+        (limited_a, limited_b)
     } else {
-        // Turned past the limit: the limit's angle within the plane of `from` and `to`
-        // (when they are opposite there is no such plane and the segment stays).
-        match (to - ring.from * cos).try_normalize() {
-            Some(across) => ring.from * ring.cos_max_angle + across * ring.sin_max_angle,
-            None => ring.from,
-        }
+        // Pushed straight back past the parent: no plane to turn in, the segment stays.
+        (0.0, 0.0)
     };
-    direction * ring.length - rest
+    v * a + ring.from * b
 }
 
-/// The culling shape of a moved instance (model space), written into `out`: a sphere per
-/// ring around its moved centre makes the trunk box, leaf groups are translated with their
-/// terminal ring, and the whole box holds both.
-pub fn moved_bounds(model: &TreeModel, offsets: &[Vec3], out: &mut CullShape) {
-    let mut trunk = Bounds::EMPTY;
-    for (ring, offset) in model.rings.iter().zip(offsets) {
-        let c = ring.center + *offset;
-        let r = Vec3::splat(ring.diameter * 0.5);
-        trunk = trunk.union(Bounds {
-            min: c - r,
-            max: c + r,
-        });
+/// The culling shape of a moved instance of the tree `rig` was built for (model space),
+/// written into `out`: a sphere per ring around its moved centre makes the trunk box, leaf
+/// groups are translated with their terminal ring, and the whole box holds both.
+pub fn moved_bounds(rig: &WindRig, offsets: &[Vec3A], out: &mut CullShape) {
+    let (mut min, mut max) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    for (sphere, offset) in rig.ring_spheres.iter().zip(offsets) {
+        let center = Vec3A::from_vec4(*sphere) + *offset;
+        let radius = Vec3A::splat(sphere.w);
+        min = min.min(center - radius);
+        max = max.max(center + radius);
     }
+    // No rings leave it empty (infinite corners the wrong way round), as Bounds::EMPTY.
+    let trunk = Bounds {
+        min: min.into(),
+        max: max.into(),
+    };
     out.groups.clear();
     out.groups
-        .extend(model.leaf_groups.iter().map(|g| BoundingSphere {
-            center: g.bounds.center + offsets.get(g.ring as usize).copied().unwrap_or(Vec3::ZERO),
-            radius: g.bounds.radius,
+        .extend(rig.leaf_groups.iter().map(|(sphere, ring)| {
+            BoundingSphere {
+                center: sphere.center
+                    + offsets
+                        .get(*ring as usize)
+                        .map_or(Vec3::ZERO, |o| Vec3::from(*o)),
+                radius: sphere.radius,
+            }
         }));
     out.bounds = out.groups.iter().fold(trunk, |b, s| {
         b.union(Bounds {

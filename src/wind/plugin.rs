@@ -2,6 +2,7 @@
 //! for instances that were visible last frame, their rings' offsets in one flat table —
 //! the table the render pass uploads and applies per ring on the GPU.
 
+use bevy::math::Vec3A;
 use bevy::prelude::*;
 
 use super::asset::SpringSet;
@@ -53,7 +54,7 @@ impl Default for WindSettings {
 #[derive(Resource, Clone, Debug, Default)]
 pub struct RingOffsetTable {
     /// Per-ring offsets, instance after instance.
-    pub offsets: Vec<Vec3>,
+    pub offsets: Vec<Vec3A>,
     /// Where each instance's rings start; one more entry than instances.
     pub starts: Vec<u32>,
     /// Instances with offsets (the rest were invisible or below the motion LOD).
@@ -169,7 +170,7 @@ struct WindCache {
     /// Per motion index this frame: the springs' displacements and the largest of them.
     springs: Vec<Option<(AssetId<SpringSet>, Vec<Vec3>, f32, f32)>>,
     frame: u32,
-    scratch: Vec<Vec3>,
+    scratch: Vec<Vec3A>,
 }
 
 impl WindCache {
@@ -193,7 +194,7 @@ impl WindCache {
                     let model = models.get(&instance.model)?;
                     table
                         .offsets
-                        .resize(table.offsets.len() + model.rings.len(), Vec3::ZERO);
+                        .resize(table.offsets.len() + model.rings.len(), Vec3A::ZERO);
                     let (_, rotation, translation) = transform.to_scale_rotation_translation();
                     Some(InstanceWind {
                         model: instance.model.id(),
@@ -292,15 +293,12 @@ fn move_rings(
             come_to_rest(instance, &mut table.offsets[rings], moved, i);
             continue;
         };
-        let Some(model) = models.get(instance.model) else {
-            continue;
-        };
         counts.candidates += 1;
         let Some(rig) = resolve_rig(
             &mut cache.rigs,
             &mut cache.rig_index,
             instance,
-            model,
+            &models,
             *set_id,
             &sets,
         ) else {
@@ -339,7 +337,7 @@ fn move_rings(
         );
         if cache.scratch.len() == rings.len() {
             table.offsets[rings].copy_from_slice(&cache.scratch);
-            moved_bounds(model, &cache.scratch, moved.shape_mut(i));
+            moved_bounds(rig, &cache.scratch, moved.shape_mut(i));
             instance.moving = true;
             counts.updated += 1;
             counts.moved += 1;
@@ -359,7 +357,7 @@ fn resolve_rig<'a>(
     rigs: &'a mut Vec<WindRig>,
     rig_index: &mut HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), u32>,
     instance: &mut InstanceWind,
-    model: &TreeModel,
+    models: &Assets<TreeModel>,
     set_id: AssetId<SpringSet>,
     sets: &Assets<SpringSet>,
 ) -> Option<&'a WindRig> {
@@ -369,6 +367,7 @@ fn resolve_rig<'a>(
             Some(&index) => index,
             None => {
                 let set = sets.get(set_id)?;
+                let model = models.get(instance.model)?;
                 let motions = associate(model, &set.rules, set.springs.len());
                 rigs.push(WindRig::new(model, &motions));
                 let index = rigs.len() as u32 - 1;
@@ -383,12 +382,12 @@ fn resolve_rig<'a>(
 /// Puts a still instance back at rest, once.
 fn come_to_rest(
     instance: &mut InstanceWind,
-    offsets: &mut [Vec3],
+    offsets: &mut [Vec3A],
     moved: &mut MovedShapes,
     i: usize,
 ) {
     if instance.moving {
-        offsets.fill(Vec3::ZERO);
+        offsets.fill(Vec3A::ZERO);
         moved.remove(i);
         instance.moving = false;
     }
