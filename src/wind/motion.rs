@@ -332,40 +332,29 @@ fn to_model_space(to_model: Quat, scale: f32, displacement: Vec3) -> Vec3A {
 
 /// How far a ring moves when `push` bends its segment on the parent, rigidly (its length
 /// kept) and by at most its limit angle. Within the limit the segment simply points along
-/// `rest + push`; past it, it turns by the limit towards that direction; a push up to
-/// [`LINEAR_PUSH`] of the length bends it by the first-order rotation. No push (also on a
-/// ring with no small-push range) moves nothing.
-///
-/// Every case is `v·a + from·b` for `v = rest + push` and two scalars, and both are worked
-/// out for every case and then picked, without branches or trigonometry: which case a ring
-/// falls in changes from ring to ring and frame to frame, and a mispredicted branch costs
-/// more than the arithmetic.
+/// `rest + push`; past it, it turns by the limit towards that direction — no
+/// trigonometry per ring. No push (also on a ring with no small-push range) moves nothing.
 fn bend(ring: &RigRing, push: Vec3A) -> Vec3A {
-    let length = ring.length;
-    let v = ring.from * length + push;
-    let along = ring.from.dot(v);
-    let v_squared = v.length_squared();
-    // Within the limit: the segment points along `v`.
-    let v_inverse = v_squared.sqrt().recip();
-    // Past it: `from` turned by the limit towards `v` within their plane.
-    let across_inverse = (v_squared - along * along).max(0.0).sqrt().recip();
-    let limited_a = length * ring.sin_max_angle * across_inverse;
-    let limited_b = length * (ring.cos_max_angle - 1.0) - limited_a * along;
-    let (a, b) = if push.length_squared() <= ring.linear_below_squared {
+    if push.length_squared() <= ring.linear_below_squared {
         // Small push: the first-order rotation (the push across the segment).
-        (1.0, -along)
-    } else if !(v_inverse.is_finite()) {
-        // Pushed back onto the parent: no direction to point the segment at.
-        (0.0, 0.0)
-    } else if along * v_inverse >= ring.cos_max_angle {
-        (length * v_inverse, -length)
-    } else if across_inverse.is_finite() {
-        (limited_a, limited_b)
-    } else {
-        // Pushed straight back past the parent: no plane to turn in, the segment stays.
-        (0.0, 0.0)
+        return push - ring.from * ring.from.dot(push);
+    }
+    let rest = ring.from * ring.length;
+    let Some(to) = (rest + push).try_normalize() else {
+        return Vec3A::ZERO;
     };
-    v * a + ring.from * b
+    let cos = ring.from.dot(to);
+    let direction = if cos >= ring.cos_max_angle {
+        to
+    } else {
+        // Turned past the limit: the limit's angle within the plane of `from` and `to`
+        // (when they are opposite there is no such plane and the segment stays).
+        match (to - ring.from * cos).try_normalize() {
+            Some(across) => ring.from * ring.cos_max_angle + across * ring.sin_max_angle,
+            None => ring.from,
+        }
+    };
+    direction * ring.length - rest
 }
 
 /// The culling shape of a moved instance of the tree `rig` was built for (model space),
