@@ -178,9 +178,14 @@ fn a_target_below_the_logic_time_is_clamped_not_negative() {
     let d = frame(&mut app, with(LodMode::Tclod, -5.0));
     assert_eq!(d.render_budget_ms, 0.0);
     assert!(d.logic_ms > 0.0);
+    assert!(d.target_below_logic, "reported in the diagnostics at once");
     let d = frame(&mut app, with(LodMode::Tclod, f32::NAN));
     assert_eq!(d.render_budget_ms, 0.0);
     assert_eq!(d.undrawn, 0);
+    assert!(d.target_below_logic);
+    // A reachable target, or a mode without a budget, is not below anything.
+    assert!(!frame(&mut app, with(LodMode::Tclod, 10_000.0)).target_below_logic);
+    assert!(!frame(&mut app, with(LodMode::Unlimited, -5.0)).target_below_logic);
 }
 
 #[test]

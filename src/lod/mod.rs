@@ -88,7 +88,9 @@ pub enum StrategyKind {
 pub struct FrameBudget {
     /// Target frame time in milliseconds (default 100: this crate's reference machine
     /// renders in software). A target at or below the logic time leaves no rendering time:
-    /// everything is drawn at its cheapest and a warning is logged once.
+    /// everything is drawn at its cheapest ([`LodDiagnostics::target_below_logic`]), and a
+    /// warning is logged once it has lasted [`TARGET_WARNING_SECS`] (not for the slow
+    /// frames of start-up, while shaders compile and the measured logic time settles).
     pub target_ms: f32,
     /// How objects are drawn (default TCLOD).
     pub mode: LodMode,
@@ -261,7 +263,15 @@ pub struct LodDiagnostics {
     pub budget_stage_ms: f32,
     /// Time of the Select stage, ms.
     pub select_stage_ms: f32,
+    /// The target frame time is at or below the logic time this frame, so there was no
+    /// rendering time to hand out and everything was drawn at its cheapest.
+    pub target_below_logic: bool,
 }
+
+/// How long, in seconds, the target must stay at or below the logic time before a
+/// warning is logged: longer than the start-up's slow frames take to leave the measured
+/// logic time ([`OVERHEAD_TIME_CONSTANT`] smooths them).
+pub const TARGET_WARNING_SECS: f32 = 3.0;
 
 /// Adds the Value, Budget and Select stages, [`FrameBudget`], [`LodCostModel`] and
 /// [`LodDiagnostics`]. Part of [`SherwoodPlugins`](crate::SherwoodPlugins); needs the
@@ -379,6 +389,9 @@ struct LodFrame {
     infos: HashMap<AssetId<TreeModel>, ModelInfo>,
     ranked_version: Option<u64>,
     value_ms: f32,
+    /// Since when (real seconds since start-up) the target has been at or below the
+    /// logic time, and whether that was reported.
+    target_below_logic_since: Option<f32>,
     warned_target: bool,
     /// Last frame's pass prediction by the calibration alone, seconds.
     last_uncorrected: Option<f32>,
@@ -651,16 +664,21 @@ fn hand_out_time(
     let model = FrameTimeModel {
         machine_constant: budget.machine_constant,
     };
-    if target <= logic && budget.mode != LodMode::Unlimited && budget.mode != LodMode::Static {
-        if !frame.warned_target {
+    let target_below_logic =
+        target <= logic && budget.mode != LodMode::Unlimited && budget.mode != LodMode::Static;
+    if target_below_logic {
+        let now = time.elapsed_secs();
+        let since = *frame.target_below_logic_since.get_or_insert(now);
+        if !frame.warned_target && now - since >= TARGET_WARNING_SECS {
             warn!(
-                "FrameBudget: target {:.1} ms is at or below the logic time {:.1} ms; every object is drawn at its cheapest",
+                "FrameBudget: target {:.1} ms has been at or below the logic time ({:.1} ms now) for {TARGET_WARNING_SECS} s; every object is drawn at its cheapest",
                 budget.target_ms,
                 logic * 1000.0
             );
             frame.warned_target = true;
         }
     } else {
+        frame.target_below_logic_since = None;
         frame.warned_target = false;
     }
     let fixed = calibration.fixed_time() * factor;
@@ -834,6 +852,7 @@ fn hand_out_time(
         value_stage_ms: frame.value_ms,
         budget_stage_ms: start.elapsed().as_secs_f32() * 1000.0,
         select_stage_ms: 0.0,
+        target_below_logic,
     };
 }
 
@@ -874,9 +893,9 @@ fn write_draw_lists(
             continue;
         };
         if next < frame.trees.len() && frame.trees[next].entity == entity {
-            if *list != frame.lists[next] {
-                list.clone_from(&frame.lists[next]);
-            }
+            // Swapped, not compared and copied: the frame's list gets the old one's
+            // allocations to fill next frame.
+            core::mem::swap(&mut *list, &mut frame.lists[next]);
             next += 1;
         } else if !list.is_empty() {
             list.clear();

@@ -250,9 +250,21 @@ struct LinePlan {
 impl LinePlan {
     /// Cost of drawing segments `dropped..k` as lines.
     fn lines_cost(&self, model: &TreeModel, costs: &PrimitiveCosts, px: f32, k: u32) -> f32 {
+        self.lines_cost_from(self.dropped, model, costs, px, k)
+    }
+
+    /// Cost of drawing segments `dropped..k` as lines, for another `dropped`.
+    fn lines_cost_from(
+        &self,
+        dropped: u32,
+        model: &TreeModel,
+        costs: &PrimitiveCosts,
+        px: f32,
+        k: u32,
+    ) -> f32 {
         let mut cost = 0.0;
         for (w, r) in &self.runs {
-            let r = r.start.max(self.dropped)..r.end.min(k);
+            let r = r.start.max(dropped)..r.end.min(k);
             if r.is_empty() {
                 continue;
             }
@@ -375,14 +387,9 @@ pub fn trunk_tclod(
     if triangles(static_k) <= time {
         // Fewer lines: drop the thinnest until it fits. A trunk all of lines keeps at
         // least its thickest one (drawn truncated when even that does not fit).
-        let runs = &plan.runs;
         let last = if static_k == n { n - 1 } else { static_k };
         let d = smallest(plan.dropped, last, &|d| {
-            let trial = LinePlan {
-                runs: runs.clone(),
-                dropped: d,
-            };
-            cost(&trial, static_k) <= time
+            plan.lines_cost_from(d, model, costs, px, static_k) + triangles(static_k) <= time
         });
         plan.dropped = d;
         plan.write(static_k, out);
@@ -782,40 +789,37 @@ pub fn leaves_at_depth(
     }
     // Shares of a total over the groups by cumulative rounding, so that they add up to it:
     // in proportion to the groups' leaves, or one each and the rest in proportion to
-    // their other leaves (never more than a group has). `total · upto / count` rounded
-    // down, in floating point because integer division per group is what this path is
-    // too busy for: the exact quotients are multiples of `1 / count`, so adding half of
-    // that before rounding down is exact.
-    let upto = |total: u32, upto: u64, count: u64| {
-        let count = count as f64;
-        (total as f64 * upto as f64 / count + 0.5 / count) as u32
-    };
+    // their other leaves (never more than a group has). A group's share is the cut after
+    // it minus the cut before it; the cut after `upto` of `count` is `total · upto /
+    // count` rounded down, worked out in floating point with the reciprocal of `count`
+    // because a division per group is what this path is too busy for: the exact quotients
+    // are multiples of `1 / count`, so adding half of that before rounding down is exact
+    // (the reciprocal's error is far below it).
     let spare = (n - non_empty) as u64;
-    let proportional = |total: u32, before: u64, after: u64| {
-        upto(total, after, n as u64) - upto(total, before, n as u64)
+    let (total, count) = if mixed {
+        (points, n as u64)
+    } else {
+        (points.max(tris).saturating_sub(non_empty), spare)
     };
-    let one_each = |total: u32, before: u64, after: u64| {
-        if spare == 0 {
-            return 1;
-        }
-        let rest = total.saturating_sub(non_empty);
-        1 + upto(rest, after, spare) - upto(rest, before, spare)
-    };
-    let (mut before, mut before_spare) = (0_u64, 0_u64);
+    let inverse_count = if count == 0 { 0.0 } else { 1.0 / count as f64 };
+    let cut = |upto: u64| ((total as f64 * upto as f64 + 0.5) * inverse_count) as u32;
+    let (mut upto, mut previous_cut) = (0_u64, 0_u32);
     let mut cost = 0.0;
     for group in groups {
         let len = (group.leaves.end - group.leaves.start) as u64;
         if len == 0 {
             continue;
         }
-        let (after, after_spare) = (before + len, before_spare + len - 1);
+        upto += if mixed { len } else { len - 1 };
+        let next_cut = cut(upto);
+        let share = next_cut - previous_cut;
+        previous_cut = next_cut;
         let (group_points, group_tris) = if mixed {
-            let p = proportional(points, before, after);
-            (p, len as u32 - p)
+            (share, len as u32 - share)
         } else if points > 0 {
-            (one_each(points, before_spare, after_spare), 0)
+            (1 + share, 0)
         } else {
-            (0, one_each(tris, before_spare, after_spare))
+            (0, 1 + share)
         };
         let group_size = match far_points_sizes {
             Some(sizes) => largest_point(area * len as f32 / n as f32, sizes),
@@ -830,7 +834,6 @@ pub fn leaves_at_depth(
             group_size,
             out,
         );
-        (before, before_spare) = (after, after_spare);
     }
     Selected {
         cost,

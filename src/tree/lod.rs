@@ -67,27 +67,31 @@ pub fn trunk_lod(
     projection: &Projection,
     widths: PixelRange,
 ) -> TrunkLod {
-    let segments = &model.segments;
-    let n = segments.len() as u32;
-    let projected = |s: u32| projection.pixels(segments.diameter[s as usize] * scale, depth);
+    let diameters = &model.segments.diameter;
+    let n = model.segments.len().min(diameters.len()) as u32;
+    let projected = |d: f32| projection.pixels(d * scale, depth);
+    // Segments are stored thin → thick, so where the projected diameters reach a bound is
+    // a binary search: a far tree's trunk is decided in O(widths · log segments).
+    let reaching = |from: u32, bound: f32| {
+        from + diameters[from as usize..n as usize].partition_point(|&d| projected(d) < bound)
+            as u32
+    };
     let (min, max) = (widths.min.max(1), widths.max.max(widths.min.max(1)));
-    let mut s = 0;
     let mut lod = TrunkLod::default();
-    if n == 0 || projected(0) >= max as f32 + 0.5 {
+    if n == 0 || projected(diameters[0]) >= max as f32 + 0.5 {
         lod.triangles = 0..n;
         return lod;
     }
-    while s < n && projected(s) < min as f32 - 0.5 {
-        s += 1;
-    }
+    let mut s = reaching(0, min as f32 - 0.5);
     lod.dropped = 0..s;
     for w in min..=max {
         let start = s;
-        while s < n && projected(s) < w as f32 + 0.5 {
-            s += 1;
-        }
+        s = reaching(s, w as f32 + 0.5);
         if s > start {
             lod.lines.push((w, start..s));
+        }
+        if s == n {
+            break;
         }
     }
     lod.triangles = s..n;
@@ -207,6 +211,28 @@ mod tests {
         let far = trunk_lod(&m, 1.0, 5_000.0, &PROJECTION, PixelRange::default());
         covers_every_segment(&far, n);
         assert!(far.triangles.is_empty() && far.dropped.len() > middle.dropped.len());
+        // At any depth and scale, every segment is where its own projected diameter says.
+        let widths = PixelRange { min: 2, max: 6 };
+        for (scale, depth) in [
+            (1.0, 2.0),
+            (1.0, 12.0),
+            (0.7, 40.0),
+            (1.3, 300.0),
+            (1.0, 5e4),
+        ] {
+            let lod = trunk_lod(&m, scale, depth, &PROJECTION, widths);
+            covers_every_segment(&lod, n);
+            let px = |s: u32| PROJECTION.pixels(m.segments.diameter[s as usize] * scale, depth);
+            assert!(lod.dropped.clone().all(|s| px(s) < 1.5), "at {depth}");
+            assert!(lod.triangles.clone().all(|s| px(s) >= 6.5), "at {depth}");
+            for (w, r) in &lod.lines {
+                let (low, high) = (*w as f32 - 0.5, *w as f32 + 0.5);
+                assert!(
+                    r.clone().all(|s| (low..high).contains(&px(s))),
+                    "at {depth}"
+                );
+            }
+        }
     }
 
     #[test]
