@@ -157,6 +157,18 @@ struct InstanceWind {
 
 const UNRESOLVED: u32 = u32::MAX;
 
+/// A motion index's spring set as the stage sees it this frame.
+#[derive(Default)]
+struct SetThisFrame {
+    set: AssetId<SpringSet>,
+    /// Each spring's displacement (world space).
+    displacements: Vec<Vec3>,
+    /// The largest displacement's length: the motion level of detail's measure.
+    largest: f32,
+    /// The set's motion level-of-detail threshold, pixels.
+    pixel_threshold: f32,
+}
+
 /// The stage's memory across frames. The offset table is kept too: an instance updated at
 /// a lower rate keeps its offsets in between, and a still one is zeroed once.
 #[derive(Default)]
@@ -167,8 +179,8 @@ struct WindCache {
     instances: Vec<Option<InstanceWind>>,
     rigs: Vec<WindRig>,
     rig_index: HashMap<(AssetId<TreeModel>, AssetId<SpringSet>), u32>,
-    /// Per motion index this frame: the springs' displacements and the largest of them.
-    springs: Vec<Option<(AssetId<SpringSet>, Vec<Vec3>, f32, f32)>>,
+    /// Per motion index, its spring set this frame (`None`: no set, or not loaded).
+    springs: Vec<Option<SetThisFrame>>,
     frame: u32,
     scratch: Vec<Vec3A>,
 }
@@ -253,17 +265,30 @@ fn move_rings(
     if refresh {
         cache.forget_rigs();
     }
-    cache.springs.clear();
-    for (handle, running) in settings.sets.iter().zip(&state.sets) {
-        let now = match (running, sets.get(handle)) {
-            (Some((_, springs, _)), Some(set)) => {
-                let displacements: Vec<Vec3> = springs.iter().map(|s| s.displacement).collect();
-                let largest = displacements.iter().map(|d| d.length()).fold(0.0, f32::max);
-                Some((handle.id(), displacements, largest, set.pixel_threshold))
-            }
-            _ => None,
+    // Refilled in place: the displacement lists keep their allocations frame to frame.
+    cache.springs.resize_with(settings.sets.len(), || None);
+    for ((slot, handle), running) in cache.springs.iter_mut().zip(&settings.sets).zip(
+        state
+            .sets
+            .iter()
+            .chain(core::iter::repeat(&None))
+            .take(settings.sets.len()),
+    ) {
+        let (Some((_, springs, _)), Some(set)) = (running, sets.get(handle)) else {
+            *slot = None;
+            continue;
         };
-        cache.springs.push(now);
+        let now = slot.get_or_insert_default();
+        now.set = handle.id();
+        now.displacements.clear();
+        now.displacements
+            .extend(springs.iter().map(|s| s.displacement));
+        now.largest = now
+            .displacements
+            .iter()
+            .map(|d| d.length())
+            .fold(0.0, f32::max);
+        now.pixel_threshold = set.pixel_threshold;
     }
     let frame = cache.frame;
     cache.frame = cache.frame.wrapping_add(1);
@@ -289,7 +314,13 @@ fn move_rings(
             .get(instance.motion as usize)
             .and_then(Option::as_ref)
             .filter(|_| settings.enabled && visible);
-        let Some((set_id, displacements, largest, pixel_threshold)) = springs else {
+        let Some(SetThisFrame {
+            set: set_id,
+            displacements,
+            largest,
+            pixel_threshold,
+        }) = springs
+        else {
             come_to_rest(instance, &mut table.offsets[rings], moved, i);
             continue;
         };
