@@ -43,11 +43,11 @@ pub struct PointRun {
 /// What the forest render pass draws of one tree instance this frame.
 ///
 /// The LOD selection stage fills it, every frame for every visible instance (so change
-/// detection sees it changed every frame); the pass only follows it. Ranges index the instance's
-/// [`TreeModel`]; ranges past the model's end are clipped to it. Segments are stored thin
-/// → thick, so the thick end of the trunk is the *tail* of the trunk triangles, and each
-/// leaf group's leaves are stored near → far from its ring, so a group's far leaves are
-/// the tail of [`LeafGroup::leaves`](crate::tree::LeafGroup::leaves).
+/// detection sees it changed every frame); the pass only follows it. Ranges index the
+/// instance's [`TreeModel`]; ranges past the model's end are clipped to it. Segments are
+/// stored thin → thick, so the thick end of the trunk is the *tail* of the trunk
+/// triangles, and each leaf group's leaves are stored near → far from its ring, so a
+/// group's far leaves are the tail of [`LeafGroup::leaves`](crate::tree::LeafGroup::leaves).
 ///
 /// A [`TreeInstance`](crate::ecosystem::TreeInstance) without this component is drawn at
 /// full detail; one whose list is empty is not drawn.

@@ -267,13 +267,8 @@ fn move_rings(
     }
     // Refilled in place: the displacement lists keep their allocations frame to frame.
     cache.springs.resize_with(settings.sets.len(), || None);
-    for ((slot, handle), running) in cache.springs.iter_mut().zip(&settings.sets).zip(
-        state
-            .sets
-            .iter()
-            .chain(core::iter::repeat(&None))
-            .take(settings.sets.len()),
-    ) {
+    for (i, (slot, handle)) in cache.springs.iter_mut().zip(&settings.sets).enumerate() {
+        let running = state.sets.get(i).and_then(Option::as_ref);
         let (Some((_, springs, _)), Some(set)) = (running, sets.get(handle)) else {
             *slot = None;
             continue;
