@@ -49,6 +49,14 @@ pub struct PointRun {
 /// triangles, and each leaf group's leaves are stored near → far from its ring, so a
 /// group's far leaves are the tail of [`LeafGroup::leaves`](crate::tree::LeafGroup::leaves).
 ///
+/// Leaves are addressed twice: `0..n` (`n` the model's leaf count) in the model's own
+/// order, group by group, and `n..2n` in its
+/// [far-first order](crate::tree::TreeModel::far_first_leaves) (`n + i` is its `i`-th
+/// leaf), where the `k` far leaves of every group at once are one range. A tree chosen
+/// as a whole draws its leaves with one or two ranges of the second kind; a range must
+/// not mix the two (one that straddles `n` draws the leaves on both sides, each once
+/// per order).
+///
 /// A [`TreeInstance`](crate::ecosystem::TreeInstance) without this component is drawn at
 /// full detail; one whose list is empty is not drawn.
 #[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
@@ -59,9 +67,10 @@ pub struct TreeDrawList {
     pub trunk_triangles: Range<u32>,
     /// Trunk segments drawn as lines, flat in the bark colour.
     pub trunk_lines: Vec<LineRun>,
-    /// Leaves drawn as lit, two-sided triangles: ranges of leaf indices.
+    /// Leaves drawn as lit, two-sided triangles: ranges of leaf indices (in either order,
+    /// see above).
     pub leaf_triangles: Vec<Range<u32>>,
-    /// Leaves drawn as lit points.
+    /// Leaves drawn as lit points (leaf indices in either order).
     pub leaf_points: Vec<PointRun>,
 }
 
@@ -165,6 +174,19 @@ impl TreeShading {
     }
 }
 
+/// The model's leaves in the order [`TreeDrawList`] addresses them: its own, then
+/// `far_first`.
+fn both_orders<'a>(
+    model: &'a TreeModel,
+    far_first: &'a [u32],
+) -> impl Iterator<Item = &'a crate::tree::Leaf> + 'a {
+    model.leaves.iter().chain(
+        far_first
+            .iter()
+            .filter_map(|&l| model.leaves.get(l as usize)),
+    )
+}
+
 fn clip(range: &Range<u32>, len: u32) -> Range<u32> {
     let end = range.end.min(len);
     range.start.min(end)..end
@@ -208,8 +230,9 @@ pub struct ModelSlot {
     pub trunk_triangle_count: u32,
     /// First leaf triangle, in triangles.
     pub leaf_triangles: u32,
-    /// Prefix over the model's leaves of their triangle counts (length leaves + 1): leaves
-    /// `a..b` are triangles `leaf_triangles + prefix[a] .. leaf_triangles + prefix[b]`.
+    /// Prefix over the leaf indices of the leaves' triangle counts (length
+    /// `point_count + 1`): leaves `a..b` are triangles `leaf_triangles + prefix[a] ..
+    /// leaf_triangles + prefix[b]`.
     pub leaf_triangle_prefix: Vec<u32>,
     /// First segment line in [`GeometryAtlas::primitives`].
     pub lines: u32,
@@ -217,7 +240,8 @@ pub struct ModelSlot {
     pub line_count: u32,
     /// First leaf point in [`GeometryAtlas::primitives`].
     pub points: u32,
-    /// Leaf count.
+    /// Leaf indices: every leaf twice, in the model's order then in its far-first order
+    /// (see [`TreeDrawList`]).
     pub point_count: u32,
     /// Ring count (the length of its slice of a ring-offset table).
     pub rings: u32,
@@ -227,10 +251,15 @@ impl ModelSlot {
     /// The counts and leaf prefix of `model` alone, at offset 0: enough for
     /// [`ModelSlot::counts`] without packing the geometry.
     pub fn of(model: &TreeModel) -> Self {
-        let mut prefix = Vec::with_capacity(model.leaves.len() + 1);
+        Self::with_leaf_order(model, &model.far_first_leaves())
+    }
+
+    fn with_leaf_order(model: &TreeModel, far_first: &[u32]) -> Self {
+        let leaves = both_orders(model, far_first);
+        let mut prefix = Vec::with_capacity(model.leaves.len() + far_first.len() + 1);
         prefix.push(0);
         let mut total = 0;
-        for leaf in &model.leaves {
+        for leaf in leaves {
             total += leaf.triangles.len() as u32;
             prefix.push(total);
         }
@@ -238,11 +267,11 @@ impl ModelSlot {
             trunk_triangles: 0,
             trunk_triangle_count: model.trunk_triangle_count() as u32,
             leaf_triangles: 0,
-            leaf_triangle_prefix: prefix,
             lines: 0,
             line_count: model.segments.len() as u32,
             points: 0,
-            point_count: model.leaves.len() as u32,
+            point_count: (prefix.len() - 1) as u32,
+            leaf_triangle_prefix: prefix,
             rings: model.rings.len() as u32,
         }
     }
@@ -294,8 +323,10 @@ pub struct GeometryAtlas {
 }
 
 impl GeometryAtlas {
-    /// Appends a model and returns where it went.
+    /// Appends a model and returns where it went. Leaf triangles and points are stored
+    /// twice, in the two orders [`TreeDrawList`] addresses (the vertices once).
     pub fn push(&mut self, model: &TreeModel) -> ModelSlot {
+        let far_first = model.far_first_leaves();
         let first_triangle = |atlas: &Self| (atlas.indices.len() / 3) as u32;
         let base = self.vertices.len() as u32;
         self.vertices.extend(
@@ -335,7 +366,7 @@ impl GeometryAtlas {
                 }),
         );
         let leaf_triangles = first_triangle(self);
-        for leaf in &model.leaves {
+        for leaf in both_orders(model, &far_first) {
             let indices = &model.leaf_indices[leaf.triangles.start as usize * 3..];
             let indices = &indices[..leaf.triangles.len() * 3];
             self.indices.extend(indices.iter().map(|&i| leaf_base + i));
@@ -357,23 +388,24 @@ impl GeometryAtlas {
                     }),
             );
         let points = self.primitives.len() as u32;
-        self.primitives.extend(model.leaves.iter().map(|leaf| {
-            GpuPrimitive {
-                a: leaf.center.to_array(),
-                ring_a: model
-                    .leaf_groups
-                    .get(leaf.group as usize)
-                    .map_or(NO_RING, |g| g.ring),
-                b: leaf.normal.to_array(),
-                ring_b: NO_RING,
-            }
-        }));
+        self.primitives
+            .extend(both_orders(model, &far_first).map(|leaf| {
+                GpuPrimitive {
+                    a: leaf.center.to_array(),
+                    ring_a: model
+                        .leaf_groups
+                        .get(leaf.group as usize)
+                        .map_or(NO_RING, |g| g.ring),
+                    b: leaf.normal.to_array(),
+                    ring_b: NO_RING,
+                }
+            }));
         ModelSlot {
             trunk_triangles,
             leaf_triangles,
             lines,
             points,
-            ..ModelSlot::of(model)
+            ..ModelSlot::with_leaf_order(model, &far_first)
         }
     }
 }

@@ -58,6 +58,43 @@ fn the_atlas_keeps_each_model_apart_and_addresses_leaves_by_range() {
 }
 
 #[test]
+fn leaves_past_the_model_s_count_are_its_far_first_order() {
+    let model = species("broad");
+    let mut atlas = GeometryAtlas::default();
+    let slot = atlas.push(&model);
+    let n = model.leaves.len() as u32;
+    assert_eq!(slot.point_count, 2 * n);
+    let far_first = model.far_first_leaves();
+    for (i, &leaf) in far_first.iter().enumerate() {
+        let index = n + i as u32;
+        // The same point, and the same triangles, as the leaf in the model's own order.
+        assert_eq!(
+            atlas.primitives[(slot.points + index) as usize],
+            atlas.primitives[(slot.points + leaf) as usize]
+        );
+        let (own, far) = (
+            slot.leaf_triangle_range(&(leaf..leaf + 1)),
+            slot.leaf_triangle_range(&(index..index + 1)),
+        );
+        assert_eq!(own.len(), far.len());
+        let triangle = |t: u32| &atlas.indices[t as usize * 3..t as usize * 3 + 3];
+        for (a, b) in own.zip(far) {
+            assert_eq!(triangle(a), triangle(b));
+        }
+    }
+    // Counting and chunking see a far-first range like any other.
+    let list = TreeDrawList {
+        leaf_points: vec![PointRun {
+            leaves: n..n + 40,
+            size: 2,
+        }],
+        ..Default::default()
+    };
+    assert_eq!(slot.counts(&list).points, 40);
+    assert_eq!(list.counts(&model), slot.counts(&list));
+}
+
+#[test]
 fn full_detail_is_every_triangle_in_few_chunks() {
     let model = species("grand");
     let mut atlas = GeometryAtlas::default();
@@ -106,7 +143,8 @@ fn ranges_past_the_model_are_clipped_not_trusted() {
             segments: segments - 1..segments + 40,
             width: 0,
         }],
-        leaf_triangles: std::iter::once(leaves + 5..leaves + 9).collect(),
+        // Past both orders of the leaves.
+        leaf_triangles: std::iter::once(2 * leaves + 5..2 * leaves + 9).collect(),
         leaf_points: vec![PointRun {
             // Backwards: empty.
             leaves: core::ops::Range { start: 30, end: 10 },
@@ -150,7 +188,7 @@ proptest! {
     /// Chunks tile every requested range exactly once, in order, none empty or oversized.
     #[test]
     fn chunks_tile_the_ranges(
-        cuts in proptest::collection::vec(0u32..2000, 0..12),
+        cuts in proptest::collection::vec(0u32..8000, 0..12),
         widths in proptest::collection::vec(1u32..21, 12),
     ) {
         let model = &*BROAD;
@@ -158,7 +196,8 @@ proptest! {
         let slot = atlas.push(model);
         let leaves = model.leaves.len() as u32;
         let segments = model.segments.len() as u32;
-        let mut cuts: Vec<u32> = cuts.into_iter().map(|c| c % (leaves + 1)).collect();
+        // Either order of the leaves, and ranges across both.
+        let mut cuts: Vec<u32> = cuts.into_iter().map(|c| c % (2 * leaves + 1)).collect();
         cuts.sort_unstable();
         let mut list = TreeDrawList {
             trunk_triangles: 0..model.trunk_triangle_count() as u32 / 2,
@@ -227,5 +266,62 @@ proptest! {
             prop_assert_eq!(drawn, expected(kind));
         }
         prop_assert_eq!(drawn_total, 2 * (counts.triangles + counts.lines + counts.points));
+    }
+}
+
+/// The leaves of each group in the first `k` of `order`: how many, and whether they are
+/// the group's far end.
+fn prefix_per_group(groups: &[core::ops::Range<u32>], order: &[u32], k: usize) -> Vec<(u32, bool)> {
+    groups
+        .iter()
+        .map(|g| {
+            let taken: Vec<u32> = order[..k]
+                .iter()
+                .copied()
+                .filter(|l| g.contains(l))
+                .collect();
+            let count = taken.len() as u32;
+            (count, taken.iter().all(|&l| l >= g.end - count))
+        })
+        .collect()
+}
+
+proptest! {
+    /// Any prefix of the far-first order takes every group's far leaves in proportion
+    /// to its size (within one leaf), and one of every group once it is long enough.
+    #[test]
+    fn a_far_first_prefix_is_every_group_s_far_share(
+        sizes in proptest::collection::vec(1u32..40, 1..30),
+        at in 0.0f64..=1.0,
+    ) {
+        let mut model = BROAD.clone();
+        let mut start = 0;
+        model.leaf_groups.truncate(1);
+        let template = model.leaf_groups[0].clone();
+        model.leaf_groups = sizes
+            .iter()
+            .map(|&len| {
+                start += len;
+                bevy_sherwood::tree::LeafGroup { leaves: start - len..start, ..template.clone() }
+            })
+            .collect();
+        let total = start as usize;
+        let order = model.far_first_leaves();
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        prop_assert_eq!(sorted, (0..start).collect::<Vec<_>>(), "a permutation");
+        let groups: Vec<_> = model.leaf_groups.iter().map(|g| g.leaves.clone()).collect();
+        let k = (at * total as f64) as usize;
+        let per_group = prefix_per_group(&groups, &order, k);
+        for (g, &(count, far_end)) in per_group.iter().enumerate() {
+            prop_assert!(far_end, "group {} takes near leaves first", g);
+            prop_assert!(k < groups.len() || count >= 1, "group {} undrawn at {}", g, k);
+        }
+        // count / size ∈ [t, t + 1/size] for one threshold t shared by all groups.
+        let fraction = |g: usize| f64::from(per_group[g].0) / f64::from(sizes[g]);
+        let low = (0..sizes.len()).map(fraction).fold(f64::INFINITY, f64::min);
+        for g in 0..sizes.len() {
+            prop_assert!(fraction(g) <= low + 1.0 / f64::from(sizes[g]) + 1e-9, "group {}", g);
+        }
     }
 }

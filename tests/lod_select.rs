@@ -239,13 +239,19 @@ fn a_tree_at_the_camera_fills_the_screen_once() {
 /// (triangle leaves, points) a list draws, and whether every group draws a leaf and no
 /// leaf is drawn twice.
 fn drawn(model: &TreeModel, list: &TreeDrawList) -> (u32, u32, bool) {
-    let mut drawn = vec![0u8; model.leaves.len()];
+    let n = model.leaves.len();
+    let far_first = model.far_first_leaves();
+    let leaf = |l: u32| match l as usize {
+        l if l < n => l,
+        l => far_first[l - n] as usize,
+    };
+    let mut drawn = vec![0u8; n];
     for r in &list.leaf_triangles {
-        r.clone().for_each(|l| drawn[l as usize] += 1);
+        r.clone().for_each(|l| drawn[leaf(l)] += 1);
     }
     let triangles = drawn.iter().map(|&d| d as u32).sum();
     for r in &list.leaf_points {
-        r.leaves.clone().for_each(|l| drawn[l as usize] += 1);
+        r.leaves.clone().for_each(|l| drawn[leaf(l)] += 1);
     }
     let points = drawn.iter().map(|&d| d as u32).sum::<u32>() - triangles;
     let sound = drawn.iter().all(|&d| d <= 1)
@@ -261,7 +267,7 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
     let model = model();
     let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
     let groups_count = model.leaf_groups.len() as u32;
-    let mut single_size_checks = 0;
+    let (mut single_size_checks, mut far_points_checks) = (0, 0);
     for depth in [40.0, 150.0, 600.0] {
         let v = view(depth);
         let g = groups(&model, depth);
@@ -308,25 +314,24 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
                         assert!(a.0.abs_diff(b.0) <= groups_count, "{case}: {a:?} vs {b:?}");
                     }
                     // One point size for the whole tree: the smallest whose static split
-                    // fits (group by group, remainders passed on mix two sizes). Only the
-                    // far points that fit, each group's at its largest size, otherwise.
-                    LeafMethod::Tclod(sizes)
-                        if !whole.truncated
-                            && b.1 > 0
-                            && at_once
-                                .leaf_points
-                                .iter()
-                                .all(|r| r.size == at_once.leaf_points[0].size) =>
-                    {
+                    // fits (group by group, remainders passed on mix two sizes); or, when
+                    // no split fits, only the far points that fit, at the largest size.
+                    LeafMethod::Tclod(sizes) if b.1 > 0 => {
+                        assert_eq!(at_once.leaf_points.len(), 1, "{case}");
                         let size = at_once.leaf_points[0].size;
-                        single_size_checks += 1;
                         let split = |size| {
                             let method = LeafMethod::Static(size);
                             let mut list = TreeDrawList::default();
                             leaves_at_depth(&model, &v, &costs, method, depth, time, &mut list)
                         };
-                        assert_eq!(split(size).cost, whole.cost, "{case}");
-                        assert!(size == sizes.min || split(size - 1).cost > time, "{case}");
+                        if split(size).cost == whole.cost {
+                            single_size_checks += 1;
+                            assert!(size == sizes.min || split(size - 1).cost > time, "{case}");
+                        } else {
+                            far_points_checks += 1;
+                            assert!(split(size).cost > time, "{case}");
+                            assert_eq!(b.0, 0, "{case}");
+                        }
                     }
                     _ => {}
                 }
@@ -334,4 +339,5 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
         }
     }
     assert!(single_size_checks > 3, "{single_size_checks}");
+    assert!(far_points_checks > 0, "{far_points_checks}");
 }

@@ -138,15 +138,33 @@ fn inconsistent_models_are_refused_not_trusted() {
         })
     ));
 
-    let mut model = slender();
-    model.leaf_groups[0].leaves.end = model.leaves.len() as u32 + 1;
-    assert!(matches!(
-        model.validate(),
-        Err(TreeFileError::Inconsistent {
-            field: "leaf_groups",
-            ..
-        })
-    ));
+    // Groups out of range, overlapping, leaving leaves out, or empty.
+    let cases: [fn(&mut TreeModel); 4] = [
+        |m| m.leaf_groups[0].leaves.end = m.leaves.len() as u32 + 1,
+        |m| m.leaf_groups[1].leaves.start -= 1,
+        |m| m.leaf_groups.last_mut().unwrap().leaves.end -= 1,
+        |m| {
+            let end = m.leaf_groups[0].leaves.end;
+            m.leaf_groups[0].leaves.start = end;
+            m.leaf_groups[0].leaves.end = end;
+        },
+    ];
+    for (i, break_groups) in cases.into_iter().enumerate() {
+        let mut model = slender();
+        assert_eq!(model.validate().ok(), Some(()));
+        break_groups(&mut model);
+        let e = model.validate();
+        assert!(
+            matches!(
+                e,
+                Err(TreeFileError::Inconsistent {
+                    field: "leaf_groups",
+                    ..
+                })
+            ),
+            "case {i}: {e:?}"
+        );
+    }
 }
 
 #[test]

@@ -716,15 +716,18 @@ fn group_tclod(
 }
 
 /// A tree's leaves, all at one depth: the choice [`leaves`] makes group by group, made
-/// once for the whole tree and spread over its groups in proportion to their leaves.
+/// once for the whole tree and drawn in the model's
+/// [far-first order](TreeModel::far_first_leaves).
 ///
 /// For a tree entirely in view and far compared with its size, every group is at about
 /// the depth of the tree's centre, so each group would get time in proportion to its
-/// leaves and choose the same point size: deciding once costs O(1) instead of a search
-/// per group, and writing the groups' runs O(groups). The totals (and so the predicted
-/// cost) are exactly the tree-level decision's; a group's share is rounded so that the
-/// shares add up. The cheapest representation is one leaf per group, as group by group,
-/// although a small group's share of it may go to a larger one.
+/// leaves and choose the same point size. Deciding once costs O(1) instead of a search
+/// per group, and because the first `k` leaves of the far-first order are every group's
+/// share of `k` from its far end (and the last `k` every group's near ones), writing the
+/// choice is O(1) too: one or two ranges, which the render pass also chunks in one go.
+/// The predicted cost is exactly that of what is drawn. As group by group, every group
+/// draws at least one leaf; unlike it, when only far points fit every group's points
+/// have one size, the largest for a group of average size.
 pub fn leaves_at_depth(
     model: &TreeModel,
     view: &TreeView,
@@ -736,9 +739,9 @@ pub fn leaves_at_depth(
 ) -> Selected {
     out.leaf_triangles.clear();
     out.leaf_points.clear();
-    let groups = &model.leaf_groups;
-    let n: u32 = groups.iter().map(|g| g.leaves.end - g.leaves.start).sum();
-    let non_empty = groups.iter().filter(|g| !g.leaves.is_empty()).count() as u32;
+    // Valid models' groups tile the leaves and none is empty (`TreeModel::validate`).
+    let n = model.leaves.len() as u32;
+    let groups = (model.leaf_groups.len() as u32).min(n);
     if n == 0 {
         return Selected::default();
     }
@@ -746,95 +749,54 @@ pub fn leaves_at_depth(
     let area = if area.is_finite() { area } else { 0.0 };
     let triangle_leaf = LeafTriangles::of(model, costs, area).per_leaf(costs, area, n);
     let time = time.max(0.0);
-    let mut far_points_sizes = None;
-    // The tree's (points, from the far end, triangle leaves, point size).
-    let (mut points, far, mut tris, size) = match method {
-        LeafMethod::Full => (0, true, n, 1),
+    // The tree's (points, triangle leaves, point size). Points alone are far points, and
+    // with triangles near ones (`static_split`).
+    let (points, tris, size) = match method {
+        LeafMethod::Full => (0, n, 1),
         LeafMethod::Tc => {
             let affordable = if triangle_leaf > 0.0 {
                 (time / triangle_leaf).min(n as f32) as u32
             } else {
                 n
             };
-            (0, true, affordable, 1)
+            (0, affordable, 1)
         }
         LeafMethod::Static(size) => {
-            let (points, far, tris) = static_split(n, area, size);
-            (points, far, tris, size)
+            let (points, _, tris) = static_split(n, area, size);
+            (points, tris, size)
         }
         LeafMethod::Tclod(sizes) => {
-            let mean_group = area / non_empty.max(1) as f32;
+            let mean_group = area / groups.max(1) as f32;
             match tclod_choice(n, area, mean_group, triangle_leaf, costs, sizes, time) {
                 (TclodChoice::Split(size), _) => {
-                    let (points, far, tris) = static_split(n, area, size);
-                    (points, far, tris, size)
+                    let (points, _, tris) = static_split(n, area, size);
+                    (points, tris, size)
                 }
-                (TclodChoice::FarPoints { size, count }, _) => {
-                    // Each group's points at its own largest size, as group by group.
-                    far_points_sizes = Some(sizes);
-                    (count, true, 0, size)
-                }
+                (TclodChoice::FarPoints { size, count }, _) => (count, 0, size),
             }
         }
     };
-    // Group by group, every group draws at least one leaf: so does every group here.
-    let mixed = points > 0 && tris > 0;
-    if !mixed {
-        points = if points > 0 { points.max(non_empty) } else { 0 };
-        tris = if tris > 0 || points == 0 {
-            tris.max(non_empty)
-        } else {
-            0
-        };
-    }
-    // Shares of a total over the groups by cumulative rounding, so that they add up to it:
-    // in proportion to the groups' leaves, or one each and the rest in proportion to
-    // their other leaves (never more than a group has). A group's share is the cut after
-    // it minus the cut before it; the cut after `upto` of `count` is `total · upto /
-    // count` rounded down, worked out in floating point with the reciprocal of `count`
-    // because a division per group is what this path is too busy for: the exact quotients
-    // are multiples of `1 / count`, so adding half of that before rounding down is exact
-    // (the reciprocal's error is far below it).
-    let spare = (n - non_empty) as u64;
-    let (total, count) = if mixed {
-        (points, n as u64)
-    } else {
-        (points.max(tris).saturating_sub(non_empty), spare)
-    };
-    let inverse_count = if count == 0 { 0.0 } else { 1.0 / count as f64 };
-    let cut = |upto: u64| ((total as f64 * upto as f64 + 0.5) * inverse_count) as u32;
-    let (mut upto, mut previous_cut) = (0_u64, 0_u32);
-    let mut cost = 0.0;
-    for group in groups {
-        let len = (group.leaves.end - group.leaves.start) as u64;
-        if len == 0 {
-            continue;
-        }
-        upto += if mixed { len } else { len - 1 };
-        let next_cut = cut(upto);
-        let share = next_cut - previous_cut;
-        previous_cut = next_cut;
-        let (group_points, group_tris) = if mixed {
-            (share, len as u32 - share)
-        } else if points > 0 {
-            (1 + share, 0)
-        } else {
-            (0, 1 + share)
-        };
-        let group_size = match far_points_sizes {
-            Some(sizes) => largest_point(area * len as f32 / n as f32, sizes),
-            None => size,
-        };
-        cost += costs.points(group_size, group_points) + triangle_leaf * group_tris as f32;
-        write_group(
-            &group.leaves,
-            group_points,
-            far,
-            group_tris,
-            group_size,
+    let far_first = n..2 * n;
+    let (points, tris) = if points > 0 && tris > 0 {
+        // Mixed: every leaf drawn, the far ones as triangles and the near ones as points.
+        let tris = n - points.min(n);
+        push(
             out,
+            far_first.start..far_first.start + tris,
+            far_first.start + tris..far_first.end,
+            size,
         );
-    }
+        (n - tris, tris)
+    } else if points > 0 {
+        let points = points.clamp(groups, n);
+        push(out, 0..0, far_first.start..far_first.start + points, size);
+        (points, 0)
+    } else {
+        let tris = tris.clamp(groups, n);
+        push(out, far_first.start..far_first.start + tris, 0..0, size);
+        (0, tris)
+    };
+    let cost = costs.points(size, points) + triangle_leaf * tris as f32;
     Selected {
         cost,
         truncated: matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_)) && cost > time,

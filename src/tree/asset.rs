@@ -179,6 +179,30 @@ impl TreeModel {
                 ));
             }
         }
+        // The groups tile the leaves in order: the far-first order and the LOD's group
+        // ranges rely on it.
+        let mut next = 0;
+        for (i, g) in self.leaf_groups.iter().enumerate() {
+            if g.leaves.is_empty() {
+                return Err(inconsistent(
+                    "leaf_groups",
+                    format!("group {i} has no leaves"),
+                ));
+            }
+            if g.leaves.start != next {
+                return Err(inconsistent(
+                    "leaf_groups",
+                    format!("group {i} does not start where the previous group ends"),
+                ));
+            }
+            next = g.leaves.end;
+        }
+        if next as usize != self.leaves.len() {
+            return Err(inconsistent(
+                "leaf_groups",
+                "the groups must cover every leaf",
+            ));
+        }
         Ok(())
     }
 

@@ -261,4 +261,37 @@ impl TreeModel {
     pub fn roots(&self) -> impl Iterator<Item = u32> + '_ {
         (0..self.rings.len() as u32).filter(|&r| self.rings[r as usize].is_root())
     }
+
+    /// Every leaf once, in *far-first order*: each group's farthest leaf (groups in
+    /// order), then the leaves ordered by how far in from their group's far end they
+    /// sit, as a fraction of the group's size.
+    ///
+    /// So the first `k` leaves of this order are, in every group at once, the group's
+    /// share of `k` taken from its far end — at least one leaf of every non-empty group
+    /// once `k` reaches the number of non-empty groups — and the last `k` are every
+    /// group's near leaves. A tree far enough away to be chosen as a whole draws its
+    /// leaves as one or two runs of this order instead of one or two per group (see
+    /// [`TreeDrawList`](crate::draw::TreeDrawList), which addresses it as leaves
+    /// `leaves.len()..2 · leaves.len()`).
+    pub fn far_first_leaves(&self) -> Vec<u32> {
+        // (group, steps in from the far end, group size); ordered by steps / size, exactly.
+        let mut keyed: Vec<(u32, u32, u32)> = self
+            .leaf_groups
+            .iter()
+            .enumerate()
+            .flat_map(|(g, group)| {
+                let len = group.leaves.end.saturating_sub(group.leaves.start);
+                (0..len).map(move |steps| (g as u32, steps, len))
+            })
+            .collect();
+        keyed.sort_by(|a, b| {
+            (u64::from(a.1) * u64::from(b.2))
+                .cmp(&(u64::from(b.1) * u64::from(a.2)))
+                .then(a.0.cmp(&b.0))
+        });
+        keyed
+            .into_iter()
+            .map(|(g, steps, _)| self.leaf_groups[g as usize].leaves.end - 1 - steps)
+            .collect()
+    }
 }
