@@ -320,8 +320,8 @@ proptest! {
         // count / size ∈ [t, t + 1/size] for one threshold t shared by all groups.
         let fraction = |g: usize| f64::from(per_group[g].0) / f64::from(sizes[g]);
         let low = (0..sizes.len()).map(fraction).fold(f64::INFINITY, f64::min);
-        for g in 0..sizes.len() {
-            prop_assert!(fraction(g) <= low + 1.0 / f64::from(sizes[g]) + 1e-9, "group {}", g);
+        for (g, &size) in sizes.iter().enumerate() {
+            prop_assert!(fraction(g) <= low + 1.0 / f64::from(size) + 1e-9, "group {}", g);
         }
     }
 }
