@@ -325,7 +325,8 @@ struct Object {
 /// One visible tree this frame.
 struct VisibleTree {
     entity: Entity,
-    model: AssetId<TreeModel>,
+    /// Index into [`LodFrame::infos`].
+    model: u32,
     view: TreeView,
     trunk_visible: bool,
     /// The visible leaf groups in [`LodFrame::groups`]; empty when `leaf_depth` is set.
@@ -344,6 +345,7 @@ pub const UNIFORM_DEPTH_RADII: f32 = 8.0;
 
 /// What the stages need of a tree type, derived once when models change.
 struct ModelInfo {
+    id: AssetId<TreeModel>,
     /// Rank (simple → complex) and complexity of the trunk as an object.
     trunk_rank: (u32, f32),
     /// The same for the leaves.
@@ -356,6 +358,13 @@ struct ModelInfo {
     /// counts to the value function's area exponent.
     group_leaves: f32,
     group_leaves_sqrt: f32,
+    /// Area-weighted centre of the trunk's triangles, model space.
+    trunk_area_center: Vec3,
+    /// The whole trunk's area, and one leaf's on average (unscaled).
+    trunk_area: f32,
+    leaf_area: f32,
+    has_trunk: bool,
+    has_leaves: bool,
     /// What counting a draw list needs.
     slot: ModelSlot,
 }
@@ -368,6 +377,10 @@ struct LodFrame {
     trees: Vec<VisibleTree>,
     groups: Vec<VisibleGroup>,
     objects: Vec<Object>,
+    /// `(rank, complexity, object, value)` of the visible objects, before ordering.
+    keyed: Vec<(u32, f32, Object, f32)>,
+    /// Per rank, where its objects start in `objects` (a counting sort's scratch).
+    rank_starts: Vec<u32>,
     values: Vec<f32>,
     complexities: Vec<f32>,
     /// Per tree, the list being chosen.
@@ -386,8 +399,15 @@ struct LodFrame {
     scratch: TreeDrawList,
     /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
     /// when models change.
-    infos: HashMap<AssetId<TreeModel>, ModelInfo>,
+    infos: Vec<ModelInfo>,
+    /// Per instance of [`ForestCulling::entities`], its model's index in `infos`
+    /// ([`NO_MODEL`] when not loaded): looked up when the forest or the models change,
+    /// not per frame.
+    instance_models: Vec<u32>,
+    /// The models' version `infos` was derived at, and the culling layout and models'
+    /// version `instance_models` was.
     ranked_version: Option<u64>,
+    instance_models_key: Option<(u64, u64)>,
     value_ms: f32,
     /// Since when (real seconds since start-up) the target has been at or below the
     /// logic time, and whether that was reported.
@@ -406,10 +426,10 @@ fn give_draw_lists(
     }
 }
 
-fn model_infos(
-    models: &Assets<TreeModel>,
-    costs: &PrimitiveCosts,
-) -> HashMap<AssetId<TreeModel>, ModelInfo> {
+/// [`LodFrame::instance_models`] of an instance whose model is not loaded.
+const NO_MODEL: u32 = u32::MAX;
+
+fn model_infos(models: &Assets<TreeModel>, costs: &PrimitiveCosts) -> Vec<ModelInfo> {
     // complexity(O): the full-detail time at one constant projected area for everyone.
     const AREA: f32 = 4.0;
     let mut types: Vec<((AssetId<TreeModel>, bool), f32)> = models
@@ -438,18 +458,21 @@ fn model_infos(
         .map(|(id, m)| {
             let rank = |leaves| ranks.get(&(id, leaves)).copied().unwrap_or((0, 0.0));
             let sizes = m.leaf_groups.iter().map(|g| g.leaves.len() as f32);
-            (
+            ModelInfo {
                 id,
-                ModelInfo {
-                    trunk_rank: rank(false),
-                    leaves_rank: rank(true),
-                    center: m.bounds.center(),
-                    radius: m.bounds.half_extents().length(),
-                    group_leaves: sizes.clone().sum(),
-                    group_leaves_sqrt: sizes.map(f32::sqrt).sum(),
-                    slot: ModelSlot::of(m),
-                },
-            )
+                trunk_rank: rank(false),
+                leaves_rank: rank(true),
+                center: m.bounds.center(),
+                radius: m.bounds.half_extents().length(),
+                group_leaves: sizes.clone().sum(),
+                group_leaves_sqrt: sizes.map(f32::sqrt).sum(),
+                trunk_area_center: m.trunk_area_center,
+                trunk_area: m.mean_trunk_triangle_area * m.trunk_triangle_count() as f32,
+                leaf_area: select::mean_leaf_area(m),
+                has_trunk: m.trunk_triangle_count() > 0,
+                has_leaves: !m.leaf_groups.is_empty(),
+                slot: ModelSlot::of(m),
+            }
         })
         .collect()
 }
@@ -479,6 +502,21 @@ fn value_objects(
         frame.infos = model_infos(&models, &costs);
         frame.ranked_version = Some(version.0);
     }
+    let instance_models_key = (culling.layout_version(), version.0);
+    if frame.instance_models_key != Some(instance_models_key) {
+        let infos = &frame.infos;
+        frame.instance_models = culling
+            .entities
+            .iter()
+            .map(|&entity| {
+                let id = instances.get(entity).ok()?.model.id();
+                let index = infos.iter().position(|info| info.id == id)?;
+                Some(index as u32)
+            })
+            .map(|index| index.unwrap_or(NO_MODEL))
+            .collect();
+        frame.instance_models_key = Some(instance_models_key);
+    }
     let projection = view.projection();
     frame.viewport_pixels = view.viewport_pixels;
     let value_of = |area: f32, at: Vec3, importance: f32| {
@@ -489,37 +527,42 @@ fn value_objects(
             importance,
         })
     };
-    let mut keyed: Vec<(u32, f32, Object, f32)> = Vec::new();
-    for (i, (&entity, visibility)) in culling
-        .entities
-        .iter()
-        .zip(&culling.result.visibility)
-        .enumerate()
-    {
+    let area_exponent_one = budget.value.area_exponent() == 1.0;
+    let LodFrame {
+        infos,
+        instance_models,
+        trees,
+        groups,
+        keyed,
+        ..
+    } = frame;
+    keyed.clear();
+    for (i, visibility) in culling.result.visibility.iter().enumerate() {
         let trunk_visible = match visibility {
             InstanceVisibility::Invisible => continue,
             InstanceVisibility::Full => true,
             InstanceVisibility::Partial { trunk, .. } => *trunk,
         };
-        let (Ok(instance), Some(cull)) = (instances.get(entity), culling.instances.get(i)) else {
+        let (Some(&model_index), Some(cull), Some(&entity)) = (
+            instance_models.get(i),
+            culling.instances.get(i),
+            culling.entities.get(i),
+        ) else {
             continue;
         };
-        let Some(model) = models.get(&instance.model) else {
-            continue;
-        };
-        let Some(info) = frame.infos.get(&instance.model.id()) else {
+        let Some(info) = infos.get(model_index as usize) else {
             continue;
         };
         let transform = cull.transform;
         let scale = transform.matrix3.x_axis.length();
-        let tree = frame.trees.len() as u32;
-        let trunk_center = transform.transform_point3(model.trunk_area_center);
-        let first_group = frame.groups.len() as u32;
-        let leaf_area = select::mean_leaf_area(model) * scale * scale;
+        let tree = trees.len() as u32;
+        let trunk_center = transform.transform_point3(info.trunk_area_center);
+        let first_group = groups.len() as u32;
+        let leaf_area = info.leaf_area * scale * scale;
         let center = transform.transform_point3(info.center);
         let center_depth = view.depth(center);
         let whole = matches!(visibility, InstanceVisibility::Full)
-            && !model.leaf_groups.is_empty()
+            && info.has_leaves
             && center_depth >= UNIFORM_DEPTH_RADII * info.radius * scale;
         let mut leaves_value = 0.0;
         let mut leaf_depth = None;
@@ -527,14 +570,14 @@ fn value_objects(
             // Every group at the centre's depth and distance: one value per leaf, times
             // the groups' leaf counts to the area's power (see `ModelInfo`).
             let per_leaf = value_of(leaf_area, center, budget.leaf_importance);
-            let counts = if budget.value.area_exponent() == 1.0 {
+            let counts = if area_exponent_one {
                 info.group_leaves
             } else {
                 info.group_leaves_sqrt
             };
             leaves_value = crate::budget::finite_value(per_leaf * counts);
             leaf_depth = Some(center_depth.max(crate::budget::MIN_DEPTH));
-        } else {
+        } else if let Some(model) = models.get(info.id) {
             for (g, group) in model.leaf_groups.iter().enumerate() {
                 if !culling.result.group_visible(i, g) {
                     continue;
@@ -542,18 +585,15 @@ fn value_objects(
                 let center = transform.transform_point3(group.bounds.center);
                 let n = group.leaves.len() as f32;
                 leaves_value += value_of(n * leaf_area, center, budget.leaf_importance);
-                frame.groups.push(VisibleGroup {
+                groups.push(VisibleGroup {
                     group: g as u32,
                     depth: view.depth(center).max(crate::budget::MIN_DEPTH),
                 });
             }
         }
-        let groups = first_group..frame.groups.len() as u32;
-        if trunk_visible && model.trunk_triangle_count() > 0 {
-            let area = model.mean_trunk_triangle_area
-                * model.trunk_triangle_count() as f32
-                * scale
-                * scale;
+        let group_range = first_group..groups.len() as u32;
+        if trunk_visible && info.has_trunk {
+            let area = info.trunk_area * scale * scale;
             let (r, c) = info.trunk_rank;
             keyed.push((
                 r,
@@ -565,30 +605,50 @@ fn value_objects(
                 value_of(area, trunk_center, budget.trunk_importance),
             ));
         }
-        if !groups.is_empty() || leaf_depth.is_some() {
+        if !group_range.is_empty() || leaf_depth.is_some() {
             let (r, c) = info.leaves_rank;
             keyed.push((r, c, Object { tree, leaves: true }, leaves_value));
         }
-        frame.trees.push(VisibleTree {
+        trees.push(VisibleTree {
             entity,
-            model: instance.model.id(),
+            model: model_index,
             view: TreeView {
                 scale,
                 trunk_depth: view.depth(trunk_center).max(crate::budget::MIN_DEPTH),
                 projection,
             },
             trunk_visible,
-            groups,
+            groups: group_range,
             leaf_depth,
         });
     }
-    // Simple → complex: types are few, so a stable sort by rank keeps it cheap and the
-    // complexities arrive sorted (Robin Hood then runs in O(n)).
-    radsort::sort_by_key(&mut keyed, |k| k.0);
-    for (_, complexity, object, value) in keyed {
-        frame.objects.push(object);
-        frame.complexities.push(complexity);
-        frame.values.push(value);
+    // Simple → complex: ranks are few (two per model), so a counting sort by rank is O(n)
+    // and stable, and the complexities arrive sorted (Robin Hood then runs in O(n)).
+    let starts = &mut frame.rank_starts;
+    starts.clear();
+    starts.resize(2 * frame.infos.len() + 1, 0);
+    // (`model_infos` ranks the 2 · models object types 0..2 · models.)
+    for &(rank, ..) in &frame.keyed {
+        starts[rank as usize + 1] += 1;
+    }
+    for r in 1..starts.len() {
+        starts[r] += starts[r - 1];
+    }
+    let n = frame.keyed.len();
+    let placeholder = Object {
+        tree: 0,
+        leaves: false,
+    };
+    frame.objects.resize(n, placeholder);
+    frame.complexities.resize(n, 0.0);
+    frame.values.resize(n, 0.0);
+    for &(rank, complexity, object, value) in &frame.keyed {
+        let at = &mut starts[rank as usize];
+        let i = *at as usize;
+        *at += 1;
+        frame.objects[i] = object;
+        frame.complexities[i] = complexity;
+        frame.values[i] = value;
     }
     frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
 }
@@ -684,6 +744,11 @@ fn hand_out_time(
     let fixed = calibration.fixed_time() * factor;
     let rendering = (model.rendering_time(logic, target) - fixed.max(0.0)).max(0.0);
 
+    // The models by `VisibleTree::model`, looked up once a frame.
+    let tree_models: Vec<Option<&TreeModel>> =
+        frame.infos.iter().map(|info| models.get(info.id)).collect();
+    let model_of = |tree: &VisibleTree| tree_models.get(tree.model as usize).copied().flatten();
+
     // Per tree, a fresh list.
     frame
         .lists
@@ -699,7 +764,7 @@ fn hand_out_time(
     match budget.mode {
         LodMode::Unlimited | LodMode::Static => {
             for (tree, list) in frame.trees.iter().zip(&mut frame.lists) {
-                let Some(m) = models.get(tree.model) else {
+                let Some(m) = model_of(tree) else {
                     continue;
                 };
                 let unlimited = budget.mode == LodMode::Unlimited;
@@ -731,7 +796,7 @@ fn hand_out_time(
             let search = |i: usize, given: f32, list: &mut TreeDrawList| {
                 let object = objects[i];
                 let tree = &trees[object.tree as usize];
-                let Some(m) = models.get(tree.model) else {
+                let Some(m) = model_of(tree) else {
                     return select::Selected::default();
                 };
                 if object.leaves {
@@ -830,7 +895,7 @@ fn hand_out_time(
 
     let mut counts = PrimitiveCounts::default();
     for (tree, list) in frame.trees.iter().zip(&frame.lists) {
-        if let Some(info) = frame.infos.get(&tree.model) {
+        if let Some(info) = frame.infos.get(tree.model as usize) {
             counts += info.slot.counts(list);
         }
     }

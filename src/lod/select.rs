@@ -241,13 +241,13 @@ fn trunk_cost_area(model: &TreeModel, view: &TreeView, costs: &PrimitiveCosts) -
 
 /// Line widths assigned to the trunk's segments: runs `(width, segments)` thin → thick,
 /// the static LOD's runs extended over segments `extend_from..` at the widest width.
-struct LinePlan {
-    runs: Vec<(u32, Range<u32>)>,
+struct LinePlan<'a> {
+    runs: &'a [(u32, Range<u32>)],
     /// Segments below this are dropped.
     dropped: u32,
 }
 
-impl LinePlan {
+impl LinePlan<'_> {
     /// Cost of drawing segments `dropped..k` as lines.
     fn lines_cost(&self, model: &TreeModel, costs: &PrimitiveCosts, px: f32, k: u32) -> f32 {
         self.lines_cost_from(self.dropped, model, costs, px, k)
@@ -263,7 +263,7 @@ impl LinePlan {
         k: u32,
     ) -> f32 {
         let mut cost = 0.0;
-        for (w, r) in &self.runs {
+        for (w, r) in self.runs {
             let r = r.start.max(dropped)..r.end.min(k);
             if r.is_empty() {
                 continue;
@@ -276,7 +276,7 @@ impl LinePlan {
 
     fn write(&self, k: u32, out: &mut TreeDrawList) {
         out.trunk_lines.clear();
-        for (w, r) in &self.runs {
+        for (w, r) in self.runs {
             let r = r.start.max(self.dropped)..r.end.min(k);
             if !r.is_empty() {
                 out.trunk_lines.push(LineRun {
@@ -306,7 +306,7 @@ pub fn trunk_static(
     );
     let k = lod.triangles.start;
     let plan = LinePlan {
-        runs: lod.lines,
+        runs: &lod.lines,
         dropped: lod.dropped.end,
     };
     plan.write(k, out);
@@ -334,7 +334,7 @@ pub fn trunk_tclod(
     out: &mut TreeDrawList,
 ) -> Selected {
     let n = model.segments.len() as u32;
-    let mut static_lod = crate::tree::trunk_lod(
+    let static_lod = crate::tree::trunk_lod(
         model,
         view.scale,
         view.trunk_depth,
@@ -345,18 +345,44 @@ pub fn trunk_tclod(
         // Too thick for the widest line.
         return trunk_tc(model, view, costs, time, out);
     }
-    if static_lod.lines.is_empty() && static_lod.triangles.is_empty() {
-        // Everything below half a pixel: the thickest segment stays, as the thinnest line.
-        static_lod.dropped = 0..n - 1;
-        static_lod.lines = vec![(widths.min.max(1), n - 1..n)];
-    }
     let time = time.max(0.0);
     let area = trunk_cost_area(model, view, costs);
     let px = pixels_per_unit(view, view.trunk_depth);
+    if static_lod.lines.is_empty() && static_lod.triangles.is_empty() {
+        // Everything below half a pixel (most trees of a large forest): the thickest
+        // segment stays, as the thinnest line, or as triangles when both fit — what the
+        // searches below choose for a single line, without them.
+        let thickest = n - 1..n;
+        let width = widths.min.max(1);
+        let line = costs.lines(
+            width,
+            1,
+            segment_length(model, &thickest) * px * PROJECTED_LENGTH_FACTOR,
+        );
+        let thick = trunk_triangle_cost(model, costs, n - 1, area);
+        out.trunk_lines.clear();
+        return if line <= time && thick <= time {
+            out.trunk_triangles = thick_end(model, n - 1);
+            Selected {
+                cost: thick,
+                truncated: false,
+            }
+        } else {
+            out.trunk_lines.push(LineRun {
+                segments: thickest,
+                width,
+            });
+            out.trunk_triangles = thick_end(model, n);
+            Selected {
+                cost: line,
+                truncated: line > time,
+            }
+        };
+    }
     let static_k = static_lod.triangles.start;
     let triangles = |k: u32| trunk_triangle_cost(model, costs, k, area);
     let mut plan = LinePlan {
-        runs: static_lod.lines,
+        runs: &static_lod.lines,
         dropped: static_lod.dropped.end,
     };
     // Lines are cheaper than the triangles they replace and removing lines is cheaper
@@ -674,7 +700,10 @@ fn tclod_choice(
             lo = mid + 1;
         }
     }
-    if let Some(chosen) = fits(lo) {
+    // (The smallest size is known not to fit.)
+    if lo > min
+        && let Some(chosen) = fits(lo)
+    {
         return chosen;
     }
     let each = costs.points(max, 1);

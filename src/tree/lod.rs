@@ -82,6 +82,12 @@ pub fn trunk_lod(
         lod.triangles = 0..n;
         return lod;
     }
+    if projected(diameters[n as usize - 1]) < min as f32 - 0.5 {
+        // Even the thickest is too thin to see: most trees of a large forest.
+        lod.dropped = 0..n;
+        lod.triangles = n..n;
+        return lod;
+    }
     let mut s = reaching(0, min as f32 - 0.5);
     lod.dropped = 0..s;
     for w in min..=max {
