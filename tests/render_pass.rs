@@ -477,21 +477,56 @@ fn opaque_geometry_hides_lines_and_points_behind_it() {
     }
 }
 
+/// The slender tree seen from the side, drawing `list`.
+fn shoot_slender(name: &str, model: &TreeModel, list: TreeDrawList) -> Picture {
+    let model = model.clone();
+    let (eye, target) = (Vec3::new(0.0, 5.0, 9.0), Vec3::new(0.0, 5.0, 0.0));
+    render(name, eye, target, move |world| {
+        spawn_tree(world, model, Some(list));
+    })
+    .0
+}
+
+#[test]
+fn leaves_in_far_first_order_draw_the_same_leaves() {
+    let model = species("slender");
+    let n = model.leaves.len() as u32;
+    for (kind, of) in [
+        (
+            "triangles",
+            (|l: &mut TreeDrawList, r| l.leaf_triangles.push(r)) as fn(&mut TreeDrawList, _),
+        ),
+        ("points", |l, r| {
+            l.leaf_points.push(PointRun { leaves: r, size: 3 });
+        }),
+    ] {
+        let own = shoot_slender(&format!("own_order_{kind}"), &model, only(|l| of(l, 0..n)));
+        let far_first = shoot_slender(
+            &format!("far_first_order_{kind}"),
+            &model,
+            only(|l| of(l, n..2 * n)),
+        );
+        let covered = own.mask().iter().filter(|&&m| m).count();
+        assert!(covered > 500, "{kind}: only {covered} pixels drawn");
+        // The same leaves in another order: only ties in depth may resolve differently.
+        let differing = (0..SIZE)
+            .flat_map(|y| (0..SIZE).map(move |x| (x, y)))
+            .filter(|&(x, y)| own.pixel(x, y) != far_first.pixel(x, y))
+            .count();
+        assert!(
+            differing * 100 <= covered,
+            "{kind}: {differing} of {covered} pixels differ"
+        );
+    }
+}
+
 #[test]
 fn draw_ranges_change_exactly_the_pixels_they_name() {
     let model = species("slender");
     let leaves = model.leaves.len() as u32;
     let half = leaves / 2;
     let trunk = 0..model.trunk_triangle_count() as u32;
-    let eye = Vec3::new(0.0, 5.0, 9.0);
-    let target = Vec3::new(0.0, 5.0, 0.0);
-    let shoot = |name: &str, list: TreeDrawList| {
-        let model = model.clone();
-        render(name, eye, target, move |world| {
-            spawn_tree(world, model, Some(list));
-        })
-        .0
-    };
+    let shoot = |name: &str, list: TreeDrawList| shoot_slender(name, &model, list);
     let all_triangles = shoot(
         "ranges_all_triangles",
         only(|l| {
