@@ -400,14 +400,13 @@ struct LodFrame {
     /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
     /// when models change.
     infos: Vec<ModelInfo>,
-    /// Per instance of [`ForestCulling::entities`], its model's index in `infos`
-    /// ([`NO_MODEL`] when not loaded): looked up when the forest or the models change,
-    /// not per frame.
-    instance_models: Vec<u32>,
+    /// Per instance of [`ForestCulling::entities`], its model and placement: derived when
+    /// the forest or the models change, not per frame.
+    placed: Vec<PlacedTree>,
     /// The models' version `infos` was derived at, and the culling layout and models'
-    /// version `instance_models` was.
+    /// version `placed` was.
     ranked_version: Option<u64>,
-    instance_models_key: Option<(u64, u64)>,
+    placed_key: Option<(u64, u64)>,
     value_ms: f32,
     /// Since when (real seconds since start-up) the target has been at or below the
     /// logic time, and whether that was reported.
@@ -426,8 +425,50 @@ fn give_draw_lists(
     }
 }
 
-/// [`LodFrame::instance_models`] of an instance whose model is not loaded.
+/// What the value stage needs of one instance that only changes with the forest's layout
+/// (the culling hierarchy's transforms) or the models.
+#[derive(Clone, Copy)]
+struct PlacedTree {
+    /// Index into [`LodFrame::infos`], or [`NO_MODEL`] when its model is not loaded.
+    model: u32,
+    /// Uniform scale.
+    scale: f32,
+    /// World-space centre of its bounding sphere, and of its trunk's area.
+    center: Vec3,
+    trunk_center: Vec3,
+}
+
+/// [`PlacedTree::model`] of an instance whose model is not loaded.
 const NO_MODEL: u32 = u32::MAX;
+
+fn place_trees(
+    culling: &ForestCulling,
+    instances: &Query<&TreeInstance>,
+    infos: &[ModelInfo],
+) -> Vec<PlacedTree> {
+    culling
+        .entities
+        .iter()
+        .zip(&culling.instances)
+        .map(|(&entity, cull)| {
+            let transform = cull.transform;
+            let id = instances.get(entity).ok().map(|i| i.model.id());
+            let model = id.and_then(|id| infos.iter().position(|info| info.id == id));
+            let (center, trunk_center) = model.map_or((Vec3::ZERO, Vec3::ZERO), |m| {
+                (
+                    transform.transform_point3(infos[m].center),
+                    transform.transform_point3(infos[m].trunk_area_center),
+                )
+            });
+            PlacedTree {
+                model: model.map_or(NO_MODEL, |m| m as u32),
+                scale: transform.matrix3.x_axis.length(),
+                center,
+                trunk_center,
+            }
+        })
+        .collect()
+}
 
 fn model_infos(models: &Assets<TreeModel>, costs: &PrimitiveCosts) -> Vec<ModelInfo> {
     // complexity(O): the full-detail time at one constant projected area for everyone.
@@ -502,20 +543,10 @@ fn value_objects(
         frame.infos = model_infos(&models, &costs);
         frame.ranked_version = Some(version.0);
     }
-    let instance_models_key = (culling.layout_version(), version.0);
-    if frame.instance_models_key != Some(instance_models_key) {
-        let infos = &frame.infos;
-        frame.instance_models = culling
-            .entities
-            .iter()
-            .map(|&entity| {
-                let id = instances.get(entity).ok()?.model.id();
-                let index = infos.iter().position(|info| info.id == id)?;
-                Some(index as u32)
-            })
-            .map(|index| index.unwrap_or(NO_MODEL))
-            .collect();
-        frame.instance_models_key = Some(instance_models_key);
+    let placed_key = (culling.layout_version(), version.0);
+    if frame.placed_key != Some(placed_key) {
+        frame.placed = place_trees(&culling, &instances, &frame.infos);
+        frame.placed_key = Some(placed_key);
     }
     let projection = view.projection();
     frame.viewport_pixels = view.viewport_pixels;
@@ -530,7 +561,7 @@ fn value_objects(
     let area_exponent_one = budget.value.area_exponent() == 1.0;
     let LodFrame {
         infos,
-        instance_models,
+        placed,
         trees,
         groups,
         keyed,
@@ -543,23 +574,24 @@ fn value_objects(
             InstanceVisibility::Full => true,
             InstanceVisibility::Partial { trunk, .. } => *trunk,
         };
-        let (Some(&model_index), Some(cull), Some(&entity)) = (
-            instance_models.get(i),
-            culling.instances.get(i),
-            culling.entities.get(i),
-        ) else {
+        let (
+            Some(&PlacedTree {
+                model: model_index,
+                scale,
+                center,
+                trunk_center,
+            }),
+            Some(&entity),
+        ) = (placed.get(i), culling.entities.get(i))
+        else {
             continue;
         };
         let Some(info) = infos.get(model_index as usize) else {
             continue;
         };
-        let transform = cull.transform;
-        let scale = transform.matrix3.x_axis.length();
         let tree = trees.len() as u32;
-        let trunk_center = transform.transform_point3(info.trunk_area_center);
         let first_group = groups.len() as u32;
         let leaf_area = info.leaf_area * scale * scale;
-        let center = transform.transform_point3(info.center);
         let center_depth = view.depth(center);
         let whole = matches!(visibility, InstanceVisibility::Full)
             && info.has_leaves
@@ -577,7 +609,8 @@ fn value_objects(
             };
             leaves_value = crate::budget::finite_value(per_leaf * counts);
             leaf_depth = Some(center_depth.max(crate::budget::MIN_DEPTH));
-        } else if let Some(model) = models.get(info.id) {
+        } else if let (Some(model), Some(cull)) = (models.get(info.id), culling.instances.get(i)) {
+            let transform = cull.transform;
             for (g, group) in model.leaf_groups.iter().enumerate() {
                 if !culling.result.group_visible(i, g) {
                     continue;
