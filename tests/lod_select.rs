@@ -188,6 +188,36 @@ fn a_trunk_too_far_to_see_is_still_one_thin_line() {
     assert_eq!(list.trunk_lines.len(), 1);
     assert_eq!(list.trunk_lines[0].width, 1);
     assert_eq!(list.trunk_lines[0].segments.len(), 1);
+    // With time for it, the thickest segment's triangles instead of its line.
+    let n = model.segments.len() as u32;
+    let generous = trunk_tclod(
+        &model,
+        &view(50_000.0),
+        &costs,
+        PixelRange::default(),
+        1.0,
+        &mut list,
+    );
+    assert!(list.trunk_lines.is_empty());
+    let thickest = model.segments.triangles(n as usize - 1);
+    assert_eq!(list.trunk_triangles, thickest);
+    assert!(!generous.truncated);
+    // A thickest segment that owns no triangles (joined to its parent by proximity) stays
+    // a line: the trunk is never drawn as nothing.
+    let mut joined = model.clone();
+    let offsets = &mut joined.segments.triangle_offsets;
+    offsets[n as usize - 1] = offsets[n as usize];
+    assert!(joined.validate().is_ok());
+    trunk_tclod(
+        &joined,
+        &view(50_000.0),
+        &costs,
+        PixelRange::default(),
+        1.0,
+        &mut list,
+    );
+    assert_eq!(list.trunk_lines.len(), 1, "{list:?}");
+    assert!(list.trunk_triangles.is_empty());
 }
 
 #[test]

@@ -351,7 +351,7 @@ pub fn trunk_tclod(
     if static_lod.lines.is_empty() && static_lod.triangles.is_empty() {
         // Everything below half a pixel (most trees of a large forest): the thickest
         // segment stays, as the thinnest line, or as triangles when both fit — what the
-        // searches below choose for a single line, without them.
+        // searches below would choose for a single line.
         let thickest = n - 1..n;
         let width = widths.min.max(1);
         let line = costs.lines(
@@ -360,9 +360,11 @@ pub fn trunk_tclod(
             segment_length(model, &thickest) * px * PROJECTED_LENGTH_FACTOR,
         );
         let thick = trunk_triangle_cost(model, costs, n - 1, area);
+        let thick_triangles = thick_end(model, n - 1);
         out.trunk_lines.clear();
-        return if line <= time && thick <= time {
-            out.trunk_triangles = thick_end(model, n - 1);
+        // (A segment joined to its parent by proximity owns no triangles: it stays a line.)
+        return if !thick_triangles.is_empty() && line <= time && thick <= time {
+            out.trunk_triangles = thick_triangles;
             Selected {
                 cost: thick,
                 truncated: false,
