@@ -202,7 +202,7 @@ pub fn trunk_tc(
 ) -> Selected {
     out.trunk_lines.clear();
     let total = model.trunk_triangle_count() as u32;
-    let area = trunk_cost_area(model, view, costs);
+    let area = trunk_cost_area(model, pixels_per_unit(view, view.trunk_depth), costs);
     let each = costs.triangles(1, area);
     let affordable = if each > 0.0 {
         (time.max(0.0) / each).min(total as f32) as u32
@@ -232,60 +232,67 @@ pub fn trunk_triangle_area(model: &TreeModel, view: &TreeView) -> f32 {
     model.mean_trunk_triangle_area * p * p
 }
 
-/// The area one trunk triangle is charged for: its projected area, with the whole trunk
-/// covering at most `costs.max_pixels`, so that the cost stays linear in the count.
-fn trunk_cost_area(model: &TreeModel, view: &TreeView, costs: &PrimitiveCosts) -> f32 {
+/// The area one trunk triangle is charged for when the trunk projects `px` pixels per
+/// model unit: its projected area, with the whole trunk covering at most
+/// `costs.max_pixels`, so that the cost stays linear in the count.
+fn trunk_cost_area(model: &TreeModel, px: f32, costs: &PrimitiveCosts) -> f32 {
     let total = model.trunk_triangle_count().max(1) as f32;
-    trunk_triangle_area(model, view).min(costs.max_pixels / total)
+    let area = model.mean_trunk_triangle_area * px * px;
+    // (Compared before dividing: the cap only binds for trees seen from close.)
+    if area * total > costs.max_pixels {
+        costs.max_pixels / total
+    } else {
+        area
+    }
 }
 
-/// Line widths assigned to the trunk's segments: runs `(width, segments)` thin → thick,
-/// the static LOD's runs extended over segments `extend_from..` at the widest width.
-struct LinePlan<'a> {
-    runs: &'a [(u32, Range<u32>)],
-    /// Segments below this are dropped.
+/// The static LOD's line runs (thesis §4.4.1) for a trunk projecting `px` pixels per
+/// model unit, written into `out.trunk_lines`: `(first segment drawn, first segment drawn
+/// as triangles)`.
+fn static_lines(
+    model: &TreeModel,
+    px: f32,
+    widths: PixelRange,
+    out: &mut TreeDrawList,
+) -> (u32, u32) {
+    out.trunk_lines.clear();
+    let n = model.segments.len().min(model.segments.diameter.len());
+    crate::tree::trunk_line_runs(
+        &model.segments.diameter[..n],
+        px,
+        widths,
+        |width, segments| out.trunk_lines.push(LineRun { segments, width }),
+    )
+}
+
+/// Cost of segments `dropped..k` drawn as the line `runs` assign them, for a trunk
+/// projecting `px` pixels per model unit.
+fn lines_cost(
+    runs: &[LineRun],
     dropped: u32,
+    model: &TreeModel,
+    costs: &PrimitiveCosts,
+    px: f32,
+    k: u32,
+) -> f32 {
+    let mut cost = 0.0;
+    for run in runs {
+        let r = run.segments.start.max(dropped)..run.segments.end.min(k);
+        if r.is_empty() {
+            continue;
+        }
+        let length = segment_length(model, &r) * px * PROJECTED_LENGTH_FACTOR;
+        cost += costs.lines(run.width, r.end - r.start, length);
+    }
+    cost
 }
 
-impl LinePlan<'_> {
-    /// Cost of drawing segments `dropped..k` as lines.
-    fn lines_cost(&self, model: &TreeModel, costs: &PrimitiveCosts, px: f32, k: u32) -> f32 {
-        self.lines_cost_from(self.dropped, model, costs, px, k)
-    }
-
-    /// Cost of drawing segments `dropped..k` as lines, for another `dropped`.
-    fn lines_cost_from(
-        &self,
-        dropped: u32,
-        model: &TreeModel,
-        costs: &PrimitiveCosts,
-        px: f32,
-        k: u32,
-    ) -> f32 {
-        let mut cost = 0.0;
-        for (w, r) in self.runs {
-            let r = r.start.max(dropped)..r.end.min(k);
-            if r.is_empty() {
-                continue;
-            }
-            let length = segment_length(model, &r) * px * PROJECTED_LENGTH_FACTOR;
-            cost += costs.lines(*w, r.end - r.start, length);
-        }
-        cost
-    }
-
-    fn write(&self, k: u32, out: &mut TreeDrawList) {
-        out.trunk_lines.clear();
-        for (w, r) in self.runs {
-            let r = r.start.max(self.dropped)..r.end.min(k);
-            if !r.is_empty() {
-                out.trunk_lines.push(LineRun {
-                    segments: r,
-                    width: *w,
-                });
-            }
-        }
-    }
+/// Keeps of the line `runs` segments `dropped..k`.
+fn clip_lines(runs: &mut Vec<LineRun>, dropped: u32, k: u32) {
+    runs.retain_mut(|run| {
+        run.segments = run.segments.start.max(dropped)..run.segments.end.min(k);
+        !run.segments.is_empty()
+    });
 }
 
 /// Static trunk (thesis §4.4.1): the pixel-driven lines of several widths for the thin
@@ -297,24 +304,13 @@ pub fn trunk_static(
     widths: PixelRange,
     out: &mut TreeDrawList,
 ) -> Selected {
-    let lod = crate::tree::trunk_lod(
-        model,
-        view.scale,
-        view.trunk_depth,
-        &view.projection,
-        widths,
-    );
-    let k = lod.triangles.start;
-    let plan = LinePlan {
-        runs: &lod.lines,
-        dropped: lod.dropped.end,
-    };
-    plan.write(k, out);
-    out.trunk_triangles = thick_end(model, k);
     let px = pixels_per_unit(view, view.trunk_depth);
-    let area = trunk_cost_area(model, view, costs);
+    let (drawn, k) = static_lines(model, px, widths, out);
+    out.trunk_triangles = thick_end(model, k);
+    let area = trunk_cost_area(model, px, costs);
     Selected {
-        cost: plan.lines_cost(model, costs, px, k) + trunk_triangle_cost(model, costs, k, area),
+        cost: lines_cost(&out.trunk_lines, drawn, model, costs, px, k)
+            + trunk_triangle_cost(model, costs, k, area),
         truncated: false,
     }
 }
@@ -334,21 +330,15 @@ pub fn trunk_tclod(
     out: &mut TreeDrawList,
 ) -> Selected {
     let n = model.segments.len() as u32;
-    let static_lod = crate::tree::trunk_lod(
-        model,
-        view.scale,
-        view.trunk_depth,
-        &view.projection,
-        widths,
-    );
-    if n == 0 || static_lod.triangles == (0..n) {
-        // Too thick for the widest line.
+    let px = pixels_per_unit(view, view.trunk_depth);
+    let (drawn, static_k) = static_lines(model, px, widths, out);
+    if static_k == 0 {
+        // Too thick for the widest line (or no segments).
         return trunk_tc(model, view, costs, time, out);
     }
     let time = time.max(0.0);
-    let area = trunk_cost_area(model, view, costs);
-    let px = pixels_per_unit(view, view.trunk_depth);
-    if static_lod.lines.is_empty() && static_lod.triangles.is_empty() {
+    let area = trunk_cost_area(model, px, costs);
+    if drawn == n {
         // Everything below half a pixel (most trees of a large forest): the thickest
         // segment stays, as the thinnest line, or as triangles when both fit — what the
         // searches below would choose for a single line.
@@ -361,7 +351,6 @@ pub fn trunk_tclod(
         );
         let thick = trunk_triangle_cost(model, costs, n - 1, area);
         let thick_triangles = thick_end(model, n - 1);
-        out.trunk_lines.clear();
         // (A segment joined to its parent by proximity owns no triangles: it stays a line.)
         return if !thick_triangles.is_empty() && line <= time && thick <= time {
             out.trunk_triangles = thick_triangles;
@@ -381,16 +370,12 @@ pub fn trunk_tclod(
             }
         };
     }
-    let static_k = static_lod.triangles.start;
     let triangles = |k: u32| trunk_triangle_cost(model, costs, k, area);
-    let mut plan = LinePlan {
-        runs: &static_lod.lines,
-        dropped: static_lod.dropped.end,
-    };
     // Lines are cheaper than the triangles they replace and removing lines is cheaper
     // still, so each cost below is monotone in its variable: binary searches find the
     // extreme that fits.
-    let cost = |plan: &LinePlan, k: u32| plan.lines_cost(model, costs, px, k) + triangles(k);
+    let runs = &out.trunk_lines;
+    let cost = |dropped: u32, k: u32| lines_cost(runs, dropped, model, costs, px, k) + triangles(k);
     let smallest = |mut lo: u32, mut hi: u32, fits: &dyn Fn(u32) -> bool| {
         while lo < hi {
             let mid = lo + (hi - lo) / 2;
@@ -402,33 +387,25 @@ pub fn trunk_tclod(
         }
         lo
     };
-    if cost(&plan, static_k) <= time {
+    let (dropped, k, used) = if cost(drawn, static_k) <= time {
         // The most triangles: the smallest first-triangle segment that fits.
-        let k = smallest(plan.dropped, static_k, &|k| cost(&plan, k) <= time);
-        plan.write(k, out);
-        out.trunk_triangles = thick_end(model, k);
-        return Selected {
-            cost: cost(&plan, k),
-            truncated: false,
-        };
-    }
-    if triangles(static_k) <= time {
+        let k = smallest(drawn, static_k, &|k| cost(drawn, k) <= time);
+        (drawn, k, cost(drawn, k))
+    } else if triangles(static_k) <= time {
         // Fewer lines: drop the thinnest until it fits. A trunk all of lines keeps at
         // least its thickest one (drawn truncated when even that does not fit).
         let last = if static_k == n { n - 1 } else { static_k };
-        let d = smallest(plan.dropped, last, &|d| {
-            plan.lines_cost_from(d, model, costs, px, static_k) + triangles(static_k) <= time
-        });
-        plan.dropped = d;
-        plan.write(static_k, out);
-        out.trunk_triangles = thick_end(model, static_k);
-        let used = cost(&plan, static_k);
-        return Selected {
-            cost: used,
-            truncated: used > time,
-        };
+        let d = smallest(drawn, last, &|d| cost(d, static_k) <= time);
+        (d, static_k, cost(d, static_k))
+    } else {
+        return trunk_tc(model, view, costs, time, out);
+    };
+    clip_lines(&mut out.trunk_lines, dropped, k);
+    out.trunk_triangles = thick_end(model, k);
+    Selected {
+        cost: used,
+        truncated: used > time,
     }
-    trunk_tc(model, view, costs, time, out)
 }
 
 /// One visible leaf group of a tree: its index and depth.

@@ -67,41 +67,60 @@ pub fn trunk_lod(
     projection: &Projection,
     widths: PixelRange,
 ) -> TrunkLod {
-    let diameters = &model.segments.diameter;
-    let n = model.segments.len().min(diameters.len()) as u32;
-    let projected = |d: f32| projection.pixels(d * scale, depth);
+    let n = model.segments.len().min(model.segments.diameter.len());
+    let mut lines = Vec::new();
+    let (drawn, thick) = trunk_line_runs(
+        &model.segments.diameter[..n],
+        projection.pixels(scale, depth),
+        widths,
+        |width, segments| lines.push((width, segments)),
+    );
+    TrunkLod {
+        dropped: 0..drawn,
+        lines,
+        triangles: thick..n as u32,
+    }
+}
+
+/// The core of [`trunk_lod`] for segments of `diameters` (thin → thick) projecting
+/// `pixels_per_unit` pixels per model unit: each line run is handed to `line` as
+/// `(width, segments)`, thin → thick, and the result is `(first segment drawn, first
+/// segment drawn as triangles)`. Allocates nothing, so that the time-critical searches
+/// can write the runs straight into a draw list.
+pub(crate) fn trunk_line_runs(
+    diameters: &[f32],
+    pixels_per_unit: f32,
+    widths: PixelRange,
+    mut line: impl FnMut(u32, Range<u32>),
+) -> (u32, u32) {
+    let n = diameters.len() as u32;
+    let projected = |d: f32| d * pixels_per_unit;
     // Segments are stored thin → thick, so where the projected diameters reach a bound is
     // a binary search: a far tree's trunk is decided in O(widths · log segments).
     let reaching = |from: u32, bound: f32| {
-        from + diameters[from as usize..n as usize].partition_point(|&d| projected(d) < bound)
-            as u32
+        from + diameters[from as usize..].partition_point(|&d| projected(d) < bound) as u32
     };
     let (min, max) = (widths.min.max(1), widths.max.max(widths.min.max(1)));
-    let mut lod = TrunkLod::default();
     if n == 0 || projected(diameters[0]) >= max as f32 + 0.5 {
-        lod.triangles = 0..n;
-        return lod;
+        return (0, 0);
     }
     if projected(diameters[n as usize - 1]) < min as f32 - 0.5 {
         // Even the thickest is too thin to see: most trees of a large forest.
-        lod.dropped = 0..n;
-        lod.triangles = n..n;
-        return lod;
+        return (n, n);
     }
-    let mut s = reaching(0, min as f32 - 0.5);
-    lod.dropped = 0..s;
+    let drawn = reaching(0, min as f32 - 0.5);
+    let mut s = drawn;
     for w in min..=max {
         let start = s;
         s = reaching(s, w as f32 + 0.5);
         if s > start {
-            lod.lines.push((w, start..s));
+            line(w, start..s);
         }
         if s == n {
             break;
         }
     }
-    lod.triangles = s..n;
-    lod
+    (drawn, s)
 }
 
 /// What one leaf group draws.

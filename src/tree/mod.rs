@@ -24,6 +24,7 @@ pub use gltf::{
     GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffer_uris, import_gltf,
 };
 pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
+pub(crate) use lod::trunk_line_runs;
 #[cfg(feature = "render")]
 pub(crate) use mesh::triangle_mesh;
 #[cfg(feature = "render")]
