@@ -432,28 +432,31 @@ pub fn group_area(model: &TreeModel, view: &TreeView, leaves: u32, depth: f32) -
 /// What drawing a leaf as triangles costs in one tree, whose leaves project `tree_area`
 /// pixels in all.
 struct LeafTriangles {
+    /// Triangles per leaf.
     per_leaf: f32,
-    /// The share of projected pixels charged: a tree's leaves together cover at most a
-    /// screenful (the LOD decisions still see the projected areas).
-    charged: f32,
+    /// The share of a leaf's projected pixels one of its triangles is charged for: a
+    /// tree's leaves together cover at most a screenful (the LOD decisions still see the
+    /// projected areas).
+    share: f32,
 }
 
 impl LeafTriangles {
     fn of(model: &TreeModel, costs: &PrimitiveCosts, tree_area: f32) -> Self {
+        let per_leaf = model.leaf_triangle_count() as f32 / model.leaves.len().max(1) as f32;
+        let charged = if tree_area > costs.max_pixels {
+            costs.max_pixels / tree_area
+        } else {
+            1.0
+        };
         Self {
-            per_leaf: model.leaf_triangle_count() as f32 / model.leaves.len().max(1) as f32,
-            charged: if tree_area > costs.max_pixels {
-                costs.max_pixels / tree_area
-            } else {
-                1.0
-            },
+            per_leaf,
+            share: charged / per_leaf.max(1.0),
         }
     }
 
-    /// The time of one leaf as triangles, in a group of `n` leaves projecting `area`.
-    fn per_leaf(&self, costs: &PrimitiveCosts, area: f32, n: u32) -> f32 {
-        let pixels = area * self.charged / n as f32 / self.per_leaf.max(1.0);
-        costs.triangles(1, pixels) * self.per_leaf
+    /// The time of one leaf as triangles, the leaf projecting `leaf_area` pixels.
+    fn per_leaf(&self, costs: &PrimitiveCosts, leaf_area: f32) -> f32 {
+        costs.triangles(1, leaf_area * self.share) * self.per_leaf
     }
 }
 
@@ -510,7 +513,7 @@ pub fn leaves(
         };
         area_left -= area;
         let given = time_left * share;
-        let triangle_leaf = leaf_cost.per_leaf(costs, area, n);
+        let triangle_leaf = leaf_cost.per_leaf(costs, area / n as f32);
         let chosen = match method {
             LeafMethod::Tc => group_tc(&leaves, triangle_leaf, given, out),
             LeafMethod::Full => {
@@ -543,7 +546,8 @@ pub fn leaves(
 /// (T-4.5, T-4.6): `(points, from the far end, triangle leaves)`.
 fn static_split(n: u32, area: f32, size: u32) -> (u32, bool, u32) {
     let s = size.max(1) as f32;
-    let wanted = area / (s * s);
+    // (The smallest size, the one tried first, needs no division.)
+    let wanted = if size <= 1 { area } else { area / (s * s) };
     let nf = n as f32;
     if wanted < nf {
         (((wanted + 0.5) as u32).clamp(1, n), true, 0)
@@ -620,11 +624,16 @@ fn group_tc(
     }
 }
 
-/// The largest point size for a group projecting `group_area` pixels: no point is larger
-/// than the group on screen.
-fn largest_point(group_area: f32, sizes: PixelRange) -> u32 {
+/// The largest point size for `groups` groups projecting `area` pixels together: no
+/// point is larger than an average group on screen.
+fn largest_point(area: f32, groups: u32, sizes: PixelRange) -> u32 {
     let min = sizes.min.max(1);
-    (group_area.max(0.0).sqrt() as u32).clamp(min, sizes.max.max(min))
+    let above_min = (min + 1) as f32;
+    // A far tree's groups cover less than a point of the next size: no root to take.
+    if area < above_min * above_min * groups as f32 {
+        return min;
+    }
+    ((area / groups.max(1) as f32).sqrt() as u32).clamp(min, sizes.max.max(min))
 }
 
 /// What TCLOD draws of `n` leaves projecting `area` pixels, given `time`.
@@ -638,18 +647,19 @@ enum TclodChoice {
 
 /// TCLOD's decision for `n` leaves projecting `area` pixels: the smallest point size (best
 /// quality) whose static split fits; at the largest size, only the far points that fit,
-/// at least one. No point is larger than a group on screen (`group_area` pixels).
+/// at least one. No point is larger than an average of the leaves' `groups` groups on
+/// screen.
 fn tclod_choice(
     n: u32,
     area: f32,
-    group_area: f32,
+    groups: u32,
     triangle_leaf: f32,
     costs: &PrimitiveCosts,
     sizes: PixelRange,
     time: f32,
 ) -> (TclodChoice, Selected) {
     let min = sizes.min.max(1);
-    let max = largest_point(group_area, sizes);
+    let max = largest_point(area, groups, sizes);
     let cost_at = |size: u32| {
         let (points, _, tris) = static_split(n, area, size);
         costs.points(size, points) + triangle_leaf * tris as f32
@@ -712,7 +722,7 @@ fn group_tclod(
     out: &mut TreeDrawList,
 ) -> Selected {
     let n = leaves.end - leaves.start;
-    let (choice, selected) = tclod_choice(n, area, area, triangle_leaf, costs, sizes, time);
+    let (choice, selected) = tclod_choice(n, area, 1, triangle_leaf, costs, sizes, time);
     match choice {
         TclodChoice::Split(size) => {
             let (points, far, tris) = static_split(n, area, size);
@@ -753,9 +763,12 @@ pub fn leaves_at_depth(
     if n == 0 {
         return Selected::default();
     }
-    let area = group_area(model, view, n, depth);
-    let area = if area.is_finite() { area } else { 0.0 };
-    let triangle_leaf = LeafTriangles::of(model, costs, area).per_leaf(costs, area, n);
+    let leaf_area = group_area(model, view, 1, depth);
+    let (leaf_area, area) = match n as f32 * leaf_area {
+        area if area.is_finite() => (leaf_area, area),
+        _ => (0.0, 0.0),
+    };
+    let triangle_leaf = LeafTriangles::of(model, costs, area).per_leaf(costs, leaf_area);
     let time = time.max(0.0);
     // The tree's (points, triangle leaves, point size). Points alone are far points, and
     // with triangles near ones (`static_split`).
@@ -774,8 +787,7 @@ pub fn leaves_at_depth(
             (points, tris, size)
         }
         LeafMethod::Tclod(sizes) => {
-            let mean_group = area / groups.max(1) as f32;
-            match tclod_choice(n, area, mean_group, triangle_leaf, costs, sizes, time) {
+            match tclod_choice(n, area, groups, triangle_leaf, costs, sizes, time) {
                 (TclodChoice::Split(size), _) => {
                     let (points, _, tris) = static_split(n, area, size);
                     (points, tris, size)

@@ -23,8 +23,8 @@ pub use asset::{
 pub use gltf::{
     GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffer_uris, import_gltf,
 };
-pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
 pub(crate) use lod::trunk_line_runs;
+pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
 #[cfg(feature = "render")]
 pub(crate) use mesh::triangle_mesh;
 #[cfg(feature = "render")]
