@@ -96,9 +96,26 @@ pub(crate) fn trunk_line_runs(
     let n = diameters.len() as u32;
     let projected = |d: f32| d * pixels_per_unit;
     // Segments are stored thin → thick, so where the projected diameters reach a bound is
-    // a binary search: a far tree's trunk is decided in O(widths · log segments).
+    // a search. A tree seen from afar shows only its thickest few segments, so it gallops
+    // in from the thick end: O(log k) for the k segments past the bound, and a far tree's
+    // trunk is decided in O(widths · log k).
     let reaching = |from: u32, bound: f32| {
-        from + diameters[from as usize..].partition_point(|&d| projected(d) < bound) as u32
+        let below = |d: &f32| projected(*d) < bound;
+        let rest = &diameters[from as usize..];
+        // Every segment from `hi` on reaches the bound.
+        let (mut hi, mut step) = (rest.len(), 1);
+        let lo = loop {
+            if step > hi {
+                break 0;
+            }
+            let probe = hi - step;
+            if below(&rest[probe]) {
+                break probe + 1;
+            }
+            hi = probe;
+            step *= 2;
+        };
+        from + (lo + rest[lo..hi].partition_point(below)) as u32
     };
     let (min, max) = (widths.min.max(1), widths.max.max(widths.min.max(1)));
     if n == 0 || projected(diameters[0]) >= max as f32 + 0.5 {
@@ -236,15 +253,21 @@ mod tests {
         let far = trunk_lod(&m, 1.0, 5_000.0, &PROJECTION, PixelRange::default());
         covers_every_segment(&far, n);
         assert!(far.triangles.is_empty() && far.dropped.len() > middle.dropped.len());
-        // At any depth and scale, every segment is where its own projected diameter says.
+        // At any depth and scale, every segment is where its own projected diameter says
+        // (a sweep of depths, so that every boundary falls at many distances from the
+        // thick end the search starts from).
         let widths = PixelRange { min: 2, max: 6 };
+        let sweep = (0..400).map(|i| (0.7 + 0.6 * (i % 7) as f32 / 6.0, 1.03f32.powi(i)));
         for (scale, depth) in [
             (1.0, 2.0),
             (1.0, 12.0),
             (0.7, 40.0),
             (1.3, 300.0),
             (1.0, 5e4),
-        ] {
+        ]
+        .into_iter()
+        .chain(sweep)
+        {
             let lod = trunk_lod(&m, scale, depth, &PROJECTION, widths);
             covers_every_segment(&lod, n);
             let px = |s: u32| PROJECTION.pixels(m.segments.diameter[s as usize] * scale, depth);
