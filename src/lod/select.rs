@@ -256,13 +256,9 @@ fn static_lines(
     out: &mut TreeDrawList,
 ) -> (u32, u32) {
     out.trunk_lines.clear();
-    let n = model.segments.len().min(model.segments.diameter.len());
-    crate::tree::trunk_line_runs(
-        &model.segments.diameter[..n],
-        px,
-        widths,
-        |width, segments| out.trunk_lines.push(LineRun { segments, width }),
-    )
+    crate::tree::trunk_line_runs(model.segments.diameters(), px, widths, |width, segments| {
+        out.trunk_lines.push(LineRun { segments, width });
+    })
 }
 
 /// Cost of segments `dropped..k` drawn as the line `runs` assign them, for a trunk

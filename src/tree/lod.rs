@@ -67,10 +67,10 @@ pub fn trunk_lod(
     projection: &Projection,
     widths: PixelRange,
 ) -> TrunkLod {
-    let n = model.segments.len().min(model.segments.diameter.len());
+    let diameters = model.segments.diameters();
     let mut lines = Vec::new();
     let (drawn, thick) = trunk_line_runs(
-        &model.segments.diameter[..n],
+        diameters,
         projection.pixels(scale, depth),
         widths,
         |width, segments| lines.push((width, segments)),
@@ -78,7 +78,7 @@ pub fn trunk_lod(
     TrunkLod {
         dropped: 0..drawn,
         lines,
-        triangles: thick..n as u32,
+        triangles: thick..diameters.len() as u32,
     }
 }
 

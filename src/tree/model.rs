@@ -140,6 +140,12 @@ impl Segments {
         self.ring.len()
     }
 
+    /// The diameters of the segments, clipped to their number (a model that was not
+    /// validated may have more).
+    pub(crate) fn diameters(&self) -> &[f32] {
+        &self.diameter[..self.len().min(self.diameter.len())]
+    }
+
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.ring.is_empty()
