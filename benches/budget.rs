@@ -12,19 +12,16 @@ use std::time::Duration;
 use bevy_sherwood::budget::*;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 const LEVELS: usize = 8;
 const TYPES: usize = 3;
 
 /// A deterministic frame: `n` objects of three types, each with an 8-level ladder whose
 /// costs halve per level, scaled by a per-object projected-area factor.
 fn frame(n: usize) -> BudgetProblem {
-    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut next = common::unit_noise();
     let mut problem = BudgetProblem::with_capacity(n, LEVELS);
     let mut ladder = [Level::default(); LEVELS];
     for t in 0..TYPES {

@@ -32,13 +32,7 @@ type Tree = (usize, TreeView, f32, f32, f32);
 fn trees(depth: f32) -> Vec<Tree> {
     // The lod bench's view: 540 px high, 1.2 rad vertical field of view.
     let projection = Projection::perspective(1.2, 540.0);
-    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut next = common::unit_noise();
     (0..TREES)
         .map(|i| {
             let depth = depth + 50.0 * next();

@@ -77,6 +77,18 @@ pub fn default_ecosystem() -> bevy_sherwood::ecosystem::EcosystemDesc {
     bevy_sherwood::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap()
 }
 
+/// Numbers uniform in [0, 1), the same stream on every call (xorshift64 from a fixed
+/// seed): synthetic bench inputs that do not change between runs.
+pub fn unit_noise() -> impl FnMut() -> f32 {
+    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
 /// Spawns a forest of `desc` in `app`.
 pub fn spawn_forest(app: &mut App, desc: bevy_sherwood::ecosystem::EcosystemDesc) {
     let handle = app
