@@ -28,8 +28,11 @@ use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
+use bevy_sherwood::cost::{
+    CalibrationChoice, CostModel, CostSettings, FrameClock, FrameSample, FrameSamples,
+};
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestState, ForestTerrain};
-use bevy_sherwood::lod::{CalibrationChoice, LodCostModel, StrategyKind};
+use bevy_sherwood::lod::StrategyKind;
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::{
     CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
@@ -52,10 +55,12 @@ usage: forest [OPTIONS]
   --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget
   --value p8|p9|p10|p11
   --no-wind              no wind
-  --no-correction        no online correction of the cost model
+  --no-correction        predict with the calibration alone (no online learning)
   --calibration FILE|default
                          predict with this calibration file, or the built-in default
                          costs (default: the one in assets/calibration/ for this adapter)
+  --scale-calibration F  multiply every cost and logic time of the calibration by F (to
+                         see the online learning correct a calibration that is off)
   --calibrate            measure this machine's rendering and logic costs over the scene
                          and write a calibration, then exit
   --out PATH             where --calibrate writes (default
@@ -99,6 +104,7 @@ struct Options {
     wind: bool,
     correction: bool,
     calibration: CalibrationChoice,
+    scale_calibration: Option<f32>,
     calibrate: bool,
     out: Option<String>,
     width: u32,
@@ -132,6 +138,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         wind: true,
         correction: true,
         calibration: CalibrationChoice::Adapter,
+        scale_calibration: None,
         calibrate: false,
         out: None,
         width: 960,
@@ -203,6 +210,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
                     None => return Err("--calibration needs a file or `default`".into()),
                 };
             }
+            "--scale-calibration" => {
+                o.scale_calibration = Some(number("--scale-calibration", it.next())?);
+            }
             "--calibrate" => o.calibrate = true,
             "--out" => o.out = Some(it.next().ok_or("--out needs a path")?.clone()),
             "--width" => o.width = number("--width", it.next())?,
@@ -227,6 +237,12 @@ fn parse(args: &[String]) -> Result<Options, String> {
     if o.out.is_some() && !o.calibrate {
         return Err("--out needs --calibrate".into());
     }
+    if o
+        .scale_calibration
+        .is_some_and(|f| !(f.is_finite() && f > 0.0))
+    {
+        return Err("--scale-calibration must be a positive number".into());
+    }
     if o.path_frames == Some(0) {
         return Err("--path-frames must be positive".into());
     }
@@ -244,7 +260,8 @@ fn parse(args: &[String]) -> Result<Options, String> {
 struct Row {
     frame: u32,
     diagnostics: LodDiagnostics,
-    measured_ms: f32,
+    /// What was measured of the frame the diagnostics were made for.
+    sample: FrameSample,
     /// The forest pass's GPU time, when timestamps are available (arrives a frame or two
     /// late).
     pass_ms: Option<f64>,
@@ -256,8 +273,9 @@ struct Run {
     /// Frames since the forest was drawn for the first time.
     frame: u32,
     rows: Vec<Row>,
-    /// Last frame's selection, measured when this frame starts.
-    pending: Option<(u32, LodDiagnostics)>,
+    /// Selections waiting for their frame's measurement: (the cost model's frame number,
+    /// measured frame index, diagnostics).
+    pending: std::collections::VecDeque<(u64, u32, LodDiagnostics)>,
     image: Option<Handle<Image>>,
 }
 
@@ -317,14 +335,14 @@ fn main() -> AppExit {
         mode: options.mode,
         strategy: options.strategy,
         value: options.value,
-        calibration: options.calibration.clone(),
         ..default()
     })
     .insert_resource(WindSettings {
         enabled: options.wind,
         ..default()
     })
-    .insert_resource(LodCostModel {
+    .insert_resource(CostSettings {
+        calibration: options.calibration.clone(),
         online: options.correction,
         ..default()
     })
@@ -340,10 +358,40 @@ fn main() -> AppExit {
     } else {
         app.add_systems(
             Update,
-            (stop_when_no_species_loads, keys, fly, follow_path, measure).chain(),
+            (
+                stop_when_no_species_loads,
+                scale_calibration,
+                keys,
+                fly,
+                follow_path,
+                measure,
+            )
+                .chain(),
         );
     }
     app.insert_resource(options).run()
+}
+
+/// `--scale-calibration`: once the calibration is installed, the same scaled.
+fn scale_calibration(
+    options: Res<Options>,
+    mut settings: ResMut<CostSettings>,
+    mut model: ResMut<CostModel>,
+    adapter: Option<Res<bevy_sherwood::cost::AdapterIdentity>>,
+    mut done: Local<bool>,
+) {
+    let Some(factor) = options.scale_calibration else {
+        return;
+    };
+    // The adapter's calibration is installed in `PreUpdate` once the adapter is known.
+    if *done || (settings.calibration == CalibrationChoice::Adapter && adapter.is_none()) {
+        return;
+    }
+    let scaled = model.calibration().scaled(factor);
+    info!("cost model: calibration scaled by {factor}");
+    model.set_calibration(scaled);
+    settings.calibration = CalibrationChoice::Keep;
+    *done = true;
 }
 
 fn exit_after_calibration(progress: Res<CalibrationProgress>, mut exit: MessageWriter<AppExit>) {
@@ -600,24 +648,33 @@ fn measure(
     mut commands: Commands,
     options: Res<Options>,
     mut run: ResMut<Run>,
-    time: Res<Time<Real>>,
+    samples: Res<FrameSamples>,
+    clock: Res<FrameClock>,
     stats: Res<ForestRenderStats>,
     lod: Res<LodDiagnostics>,
     mut exit: MessageWriter<AppExit>,
 ) {
-    // Frames count from the first frame the pass drew the forest.
-    if run.frame == 0 && stats.instances == 0 {
+    // Frames count from the first frame the pass really drew the forest (every pipeline
+    // ready), whatever the warm-up.
+    let drawn = stats.instances > 0 && samples.arrived().iter().any(|s| s.complete);
+    if run.frame == 0 && !drawn {
         return;
     }
     let run = &mut *run;
-    let measured_ms = time.delta_secs() * 1000.0;
-    if let Some((frame, diagnostics)) = run.pending.take() {
-        run.rows.push(Row {
-            frame,
-            diagnostics,
-            measured_ms,
-            pass_ms: stats.gpu_time_ms,
-        });
+    for sample in samples.arrived() {
+        while run.pending.front().is_some_and(|p| p.0 < sample.frame) {
+            run.pending.pop_front();
+        }
+        if run.pending.front().is_some_and(|p| p.0 == sample.frame)
+            && let Some((_, frame, diagnostics)) = run.pending.pop_front()
+        {
+            run.rows.push(Row {
+                frame,
+                diagnostics,
+                sample: *sample,
+                pass_ms: stats.gpu_time_ms,
+            });
+        }
     }
     let index = run.frame;
     run.frame += 1;
@@ -636,11 +693,15 @@ fn measure(
         commands.spawn(target).observe(save_to_disk(file.clone()));
     }
     if limit.is_some_and(|n| measured >= n) {
-        finish(&options, &run.rows);
-        exit.write(AppExit::Success);
+        // The last frames' measurements are still in the pipeline: wait for them (a
+        // few frames at most).
+        if run.pending.is_empty() || limit.is_some_and(|n| measured >= n + 8) {
+            finish(&options, &run.rows);
+            exit.write(AppExit::Success);
+        }
         return;
     }
-    run.pending = Some((measured, lod.clone()));
+    run.pending.push_back((clock.frame, measured, lod.clone()));
 }
 
 fn finish(options: &Options, rows: &[Row]) {
@@ -654,37 +715,60 @@ fn finish(options: &Options, rows: &[Row]) {
     }
 }
 
+/// The record's columns: name and how a row writes it.
+const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
+    ("frame", |r| r.frame.to_string()),
+    ("visible", |r| r.diagnostics.visible_instances.to_string()),
+    ("target_ms", |r| ms(r.diagnostics.target_ms)),
+    ("logic_ms", |r| ms(r.diagnostics.logic_ms)),
+    ("measured_logic_ms", |r| ms(r.sample.logic * 1000.0)),
+    ("render_budget_ms", |r| ms(r.diagnostics.render_budget_ms)),
+    ("render_fixed_ms", |r| ms(r.diagnostics.render_fixed_ms)),
+    ("predicted_render_ms", |r| ms(r.diagnostics.predicted_render_ms)),
+    ("measured_render_ms", |r| ms(r.sample.render * 1000.0)),
+    ("predicted_ms", |r| ms(r.diagnostics.predicted_frame_ms)),
+    ("measured_ms", |r| ms(r.sample.interval * 1000.0)),
+    ("triangles", |r| r.diagnostics.counts.triangles.to_string()),
+    ("lines", |r| r.diagnostics.counts.lines.to_string()),
+    ("points", |r| r.diagnostics.counts.points.to_string()),
+    ("truncated", |r| r.diagnostics.truncated.to_string()),
+    ("undrawn", |r| r.diagnostics.undrawn.to_string()),
+    ("wasted_ms", |r| ms(r.diagnostics.wasted_ms)),
+    ("overrun_ms", |r| ms(r.diagnostics.overrun_ms)),
+    ("pass_ms", |r| r.pass_ms.map_or(String::new(), |t| ms(t as f32))),
+    ("render_speed", |r| ratio(r.diagnostics.learned.render_speed)),
+    ("logic_speed", |r| ratio(r.diagnostics.learned.logic_speed)),
+    ("triangle_us", |r| ratio(r.diagnostics.learned.triangle_us)),
+    ("triangle_pixel_ns", |r| ratio(r.diagnostics.learned.triangle_pixel_ns)),
+    ("line_us", |r| ratio(r.diagnostics.learned.line_us)),
+    ("point_us", |r| ratio(r.diagnostics.learned.point_us)),
+    ("logic_fixed_ms", |r| ms(r.diagnostics.learned.logic_fixed_ms)),
+    ("logic_per_instance_us", |r| ratio(r.diagnostics.learned.logic_per_instance_us)),
+    ("sync_ms", |r| ms(r.diagnostics.learned.overlap.sync * 1000.0)),
+    ("serial", |r| ratio(r.diagnostics.learned.overlap.serial)),
+];
+
+fn ms(value: f32) -> String {
+    format!("{value:.4}")
+}
+
+fn ratio(value: f32) -> String {
+    format!("{value:.5}")
+}
+
 fn write_csv(file: &str, rows: &[Row]) -> std::io::Result<()> {
     let mut out = std::io::BufWriter::new(std::fs::File::create(file)?);
-    writeln!(
-        out,
-        "frame,visible,logic_ms,render_budget_ms,predicted_ms,measured_ms,triangles,lines,points,truncated,undrawn,target_ms,pass_ms"
-    )?;
+    let header: Vec<&str> = COLUMNS.iter().map(|c| c.0).collect();
+    writeln!(out, "{}", header.join(","))?;
     for r in rows {
-        let d = &r.diagnostics;
-        writeln!(
-            out,
-            "{},{},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{:.4},{}",
-            r.frame,
-            d.visible_instances,
-            d.logic_ms,
-            d.render_budget_ms,
-            d.predicted_frame_ms,
-            r.measured_ms,
-            d.counts.triangles,
-            d.counts.lines,
-            d.counts.points,
-            d.truncated,
-            d.undrawn,
-            d.logic_ms + d.render_budget_ms,
-            r.pass_ms.map_or(String::new(), |t| format!("{t:.4}")),
-        )?;
+        let cells: Vec<String> = COLUMNS.iter().map(|c| (c.1)(r)).collect();
+        writeln!(out, "{}", cells.join(","))?;
     }
     out.flush()
 }
 
 fn summary(target_ms: f32, rows: &[Row]) -> String {
-    let times: Vec<f64> = rows.iter().map(|r| f64::from(r.measured_ms)).collect();
+    let times: Vec<f64> = rows.iter().map(|r| f64::from(r.sample.interval * 1000.0)).collect();
     let s = FrameStats::of(&times, f64::from(target_ms));
     format!(
         "summary frames={} target_ms={target_ms} mean_ms={:.3} std_ms={:.3} avg_err={:.4} p95_ms={:.3} p99_ms={:.3} over_pct={:.2}",

@@ -104,6 +104,7 @@ impl PluginGroup for SherwoodPlugins {
     fn build(self) -> PluginGroupBuilder {
         let group = PluginGroupBuilder::start::<Self>()
             .add(SherwoodCorePlugin)
+            .add(cost::CostPlugin)
             .add(tree::TreePlugin)
             .add(ecosystem::EcosystemPlugin)
             .add(culling::CullingPlugin)

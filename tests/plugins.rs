@@ -80,7 +80,7 @@ fn plugin_group_can_leave_a_plugin_out() {
 
 #[test]
 fn calibrations_are_looked_for_in_the_apps_asset_folder() {
-    use bevy_sherwood::lod::CalibrationDir;
+    use bevy_sherwood::cost::CalibrationDir;
     let folder = std::env::temp_dir().join("sherwood-assets-elsewhere");
     let mut app = App::new();
     app.add_plugins((

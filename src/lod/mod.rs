@@ -18,11 +18,11 @@
 //!   invisible instances get empty lists. In `Static` and `Unlimited` mode no time is
 //!   handed out and this stage does all the work.
 //!
-//! The cost model ([`LodCostModel`]) predicts with a measured [`Calibration`]: the file
-//! in `assets/calibration/` naming the adapter (see [`CalibrationChoice`]; measure one
-//! with `cargo run --release --example forest -- --calibrate`), else a documented default.
-//! Its per-primitive costs predict the rendering, its logic tables estimate `t_l`, and
-//! both are corrected online (see [`crate::cost`]).
+//! The budget predicts with the [`CostModel`]: a measured calibration as the prior and
+//! what the running app learned of its own frames (see [`crate::cost`]). The logic time
+//! and the rendering time left in the target come from it, the rendering time is handed
+//! out in its learned per-primitive costs, and each frame's prediction is recorded with
+//! it ([`CostModel::record`]) so that it learns from what that frame then measured.
 
 mod diagnostics;
 pub mod select;
@@ -37,11 +37,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::SherwoodSystems;
 use crate::budget::{
-    Allocation, BudgetProblem, BudgetStrategy, Fit, FrameTimeModel, FunkhouserIncremental,
+    Allocation, BudgetProblem, BudgetStrategy, Fit, FunkhouserIncremental,
     FunkhouserSequin, Level, ObjectDesc, PreviousSelection, RobinHood, TriangleBudget,
     ValueFunction, ValueInputs, ValueModel,
 };
-use crate::cost::{AdapterIdentity, Calibration, OnlineCorrection};
+use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction, LearnedCosts};
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList};
 use crate::ecosystem::TreeInstance;
@@ -108,57 +108,6 @@ pub struct FrameBudget {
     pub line_widths: PixelRange,
     /// Point sizes in pixels (default 1–20). Static mode uses the smallest.
     pub point_sizes: PixelRange,
-    /// The frame-time model's machine constant C (P-7; default 1).
-    pub machine_constant: f32,
-    /// Which calibration [`LodCostModel`] predicts with (default: the file in
-    /// `assets/calibration/` measured on this adapter).
-    pub calibration: CalibrationChoice,
-}
-
-/// The system that installs the chosen calibration (in `PreUpdate`).
-#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct LoadCalibration;
-
-/// Where the cost model's [`Calibration`] comes from. Changing it reloads.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
-pub enum CalibrationChoice {
-    /// The `*.calibration.ron` in the [`CalibrationDir`] (`assets/calibration/` by
-    /// default) that names the adapter the app renders with (and its driver, preferred);
-    /// with none, [`Calibration::default`] and one warning. Without the `render` feature
-    /// there is no adapter: the default.
-    #[default]
-    Adapter,
-    /// This file (a path as given, relative to the working directory); when it cannot be
-    /// read or parsed, an error is logged once and the default is used.
-    File(String),
-    /// Whatever [`LodCostModel::calibration`] holds: set by code, never loaded.
-    Keep,
-}
-
-/// The directory [`CalibrationChoice::Adapter`] searches for calibrations, and where a
-/// calibration run writes by default: `calibration/` in the app's asset folder — Bevy's
-/// `AssetPlugin::file_path`, resolved as Bevy resolves it, so calibrations are found
-/// wherever the tree species are. [`LodPlugin`] inserts it unless one is already there.
-#[derive(Resource, Clone, Debug, PartialEq, Eq)]
-pub struct CalibrationDir(pub std::path::PathBuf);
-
-impl CalibrationDir {
-    /// `calibration/` in the asset folder `file_path` (absolute, or relative to Bevy's
-    /// base path, as `AssetPlugin::file_path` is).
-    pub fn in_asset_folder(file_path: &str) -> Self {
-        Self(
-            bevy::asset::io::file::FileAssetReader::get_base_path()
-                .join(file_path)
-                .join("calibration"),
-        )
-    }
-}
-
-impl Default for CalibrationDir {
-    /// In the default asset folder.
-    fn default() -> Self {
-        Self::in_asset_folder(&AssetPlugin::default().file_path)
-    }
 }
 
 impl Default for FrameBudget {
@@ -172,8 +121,6 @@ impl Default for FrameBudget {
             leaf_importance: 1.0 / 16.0,
             line_widths: PixelRange::default(),
             point_sizes: PixelRange::default(),
-            machine_constant: 1.0,
-            calibration: CalibrationChoice::Adapter,
         }
     }
 }
@@ -182,71 +129,44 @@ impl Default for FrameBudget {
 /// for the ladder strategies (best → cheapest; 0 gives the cheapest representation).
 pub const LADDER_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
 
-/// The costs the budget predicts with: a calibration (until one is loaded, the
-/// documented [`Calibration::default`]) and its online correction.
-///
-/// With `online` (the default) every frame compares what the calibration alone predicted
-/// for the forest pass with the pass's measured time ([`MeasuredPassTime`], filled by the
-/// render plugin from the GPU timestamps when Bevy's `RenderDiagnosticsPlugin` is added)
-/// and smooths the ratio into `render_correction` (see [`crate::cost`]); the rest of the
-/// frame — app logic, other rendering, presentation — is measured as the frame time minus
-/// the pass time and smoothed into `overhead`, which then replaces the logic table's
-/// estimate. Without a measured pass time the whole frame beyond the logic estimate is
-/// attributed to the pass. Predictions stay predictive: a jump in scene complexity moves
-/// the prediction at once, only the per-primitive factor is learned.
-#[derive(Resource, Clone, Debug)]
-pub struct LodCostModel {
-    /// Per-primitive and logic costs.
-    pub calibration: Calibration,
-    /// Learn from measured times (default on).
-    pub online: bool,
-    /// Learned factor on the calibrated per-primitive costs.
-    pub render_correction: OnlineCorrection,
-    /// Learned time of everything but the forest pass, seconds; `None` until measured.
-    pub overhead: Option<f32>,
-}
-
-impl Default for LodCostModel {
-    fn default() -> Self {
-        Self {
-            calibration: Calibration::default(),
-            online: true,
-            render_correction: OnlineCorrection::default(),
-            overhead: None,
-        }
-    }
-}
-
-/// Time constant, seconds, of the smoothing of the learned overhead.
-pub const OVERHEAD_TIME_CONSTANT: f32 = 1.0;
-
-/// The forest pass's measured time of a recent frame, in milliseconds, when something
-/// measures it (the render plugin, from GPU timestamps).
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
-pub struct MeasuredPassTime(pub Option<f32>);
-
 /// What the LOD stages did in the last frame.
 #[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Resource)]
 pub struct LodDiagnostics {
+    /// The frame these figures are of ([`FrameClock::frame`](crate::cost::FrameClock)).
+    pub frame: u64,
+    /// The target frame time, ms.
+    pub target_ms: f32,
     /// Visible objects (a tree's trunk and leaves count separately).
     pub visible_objects: u32,
     /// Visible tree instances.
     pub visible_instances: u32,
-    /// Estimated logic time, ms.
+    /// Predicted logic time (the main world's update), ms.
     pub logic_ms: f32,
-    /// Rendering time handed out, ms.
+    /// Rendering time handed out to the objects, ms (the fixed part excluded).
     pub render_budget_ms: f32,
-    /// Predicted rendering time of the selection, ms.
+    /// Predicted fixed part of the rendering, ms.
+    pub render_fixed_ms: f32,
+    /// Predicted rendering time: the fixed part and the selection, ms.
     pub predicted_render_ms: f32,
-    /// Predicted frame time (T-6.1 of logic and predicted rendering), ms.
+    /// Predicted frame time, ms: logic and rendering as they overlap
+    /// ([`FrameOverlap`](crate::cost::FrameOverlap)).
     pub predicted_frame_ms: f32,
-    /// Measured time of the previous frame, ms.
+    /// The most recent measured frame (a frame or two before this one: the render world
+    /// reports late): its number, or 0 before any.
+    pub measured_frame: u64,
+    /// Its frame time, ms.
     pub measured_frame_ms: f32,
+    /// Its logic time, ms.
+    pub measured_logic_ms: f32,
+    /// Its rendering time, ms.
+    pub measured_render_ms: f32,
+    /// What had been predicted for its frame time, ms.
+    pub measured_frame_predicted_ms: f32,
     /// Rendering time handed out but not used by anyone, ms.
     pub wasted_ms: f32,
-    /// The learned factor on the calibrated primitive costs (1 without online correction).
-    pub cost_factor: f32,
+    /// What the cost model has learned.
+    pub learned: LearnedCosts,
     /// Predicted rendering time beyond the rendering time, ms: cheapest representations
     /// that did not fit (Robin Hood draws them truncated, the triangle budget never goes
     /// below them).
@@ -269,45 +189,31 @@ pub struct LodDiagnostics {
 }
 
 /// How long, in seconds, the target must stay at or below the logic time before a
-/// warning is logged: longer than the start-up's slow frames take to leave the measured
-/// logic time ([`OVERHEAD_TIME_CONSTANT`] smooths them).
+/// warning is logged: longer than the start-up's slow frames take to leave the learned
+/// logic time.
 pub const TARGET_WARNING_SECS: f32 = 3.0;
 
-/// Adds the Value, Budget and Select stages, [`FrameBudget`], [`LodCostModel`] and
-/// [`LodDiagnostics`]. Part of [`SherwoodPlugins`](crate::SherwoodPlugins); needs the
-/// culling plugin.
+/// Adds the Value, Budget and Select stages, [`FrameBudget`] and [`LodDiagnostics`].
+/// Part of [`SherwoodPlugins`](crate::SherwoodPlugins); needs the culling plugin and
+/// the [`CostPlugin`](crate::cost::CostPlugin).
 #[derive(Default)]
 pub struct LodPlugin;
 
 impl Plugin for LodPlugin {
     fn build(&self, app: &mut App) {
-        if !app.world().contains_resource::<CalibrationDir>() {
-            let dir = app
-                .get_added_plugins::<AssetPlugin>()
-                .first()
-                .map_or_else(CalibrationDir::default, |assets| {
-                    CalibrationDir::in_asset_folder(&assets.file_path)
-                });
-            app.insert_resource(dir);
-        }
         app.register_type::<FrameBudget>()
             .register_type::<LodDiagnostics>()
             .init_resource::<FrameBudget>()
             .init_resource::<TreeModelsVersion>()
-            .init_resource::<LodCostModel>()
-            .init_resource::<MeasuredPassTime>()
             .init_resource::<LodDiagnostics>()
             .init_resource::<LodFrame>()
-            .add_systems(PreUpdate, load_calibration.in_set(LoadCalibration))
             .add_systems(
                 PostUpdate,
                 (
                     (give_draw_lists, value_objects)
                         .chain()
                         .in_set(SherwoodSystems::Value),
-                    (learn_costs, hand_out_time)
-                        .chain()
-                        .in_set(SherwoodSystems::Budget),
+                    hand_out_time.in_set(SherwoodSystems::Budget),
                     write_draw_lists.in_set(SherwoodSystems::Select),
                 ),
             );
@@ -412,8 +318,6 @@ struct LodFrame {
     /// logic time, and whether that was reported.
     target_below_logic_since: Option<f32>,
     warned_target: bool,
-    /// Last frame's pass prediction by the calibration alone, seconds.
-    last_uncorrected: Option<f32>,
 }
 
 fn give_draw_lists(
@@ -521,7 +425,7 @@ fn model_infos(models: &Assets<TreeModel>, costs: &PrimitiveCosts) -> Vec<ModelI
 fn value_objects(
     mut frame: ResMut<LodFrame>,
     budget: Res<FrameBudget>,
-    cost_model: Res<LodCostModel>,
+    cost_model: Res<CostModel>,
     culling: Option<Res<ForestCulling>>,
     views: Query<&LodView>,
     instances: Query<&TreeInstance>,
@@ -539,7 +443,7 @@ fn value_objects(
         return;
     };
     if frame.ranked_version != Some(version.0) {
-        let costs = PrimitiveCosts::from_calibration(&cost_model.calibration, 1.0);
+        let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
         frame.infos = model_infos(&models, &costs);
         frame.ranked_version = Some(version.0);
     }
@@ -686,79 +590,30 @@ fn value_objects(
     frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
 }
 
-fn learn_costs(
-    mut model: ResMut<LodCostModel>,
-    frame: Res<LodFrame>,
-    measured: Res<MeasuredPassTime>,
-    budget: Res<FrameBudget>,
-    time: Res<Time<Real>>,
-) {
-    let dt = time.delta_secs();
-    let (true, Some(predicted)) = (model.online, frame.last_uncorrected) else {
-        return;
-    };
-    if !(dt.is_finite() && dt > 0.0) {
-        return;
-    }
-    match measured
-        .0
-        .map(|ms| ms / 1000.0)
-        .filter(|t| t.is_finite() && *t > 0.0)
-    {
-        Some(pass) => {
-            model.render_correction.update(predicted, pass, dt);
-            // The rest of the frame is measured against a pass time from an earlier frame
-            // (timestamps come back late), so it is smoothed over longer.
-            let alpha = 1.0 - (-dt / OVERHEAD_TIME_CONSTANT).exp();
-            let rest = (dt - pass).max(0.0);
-            model.overhead = Some(match model.overhead {
-                Some(o) => o + alpha * (rest - o),
-                None => rest,
-            });
-        }
-        None => {
-            let logic = crate::cost::logic_time(
-                &model.calibration.logic,
-                frame.trees.len() as u32,
-                budget.target_ms,
-            );
-            model.render_correction.update(predicted, dt - logic, dt);
-        }
-    }
-}
-
 fn hand_out_time(
     mut frame: ResMut<LodFrame>,
     budget: Res<FrameBudget>,
-    cost_model: Res<LodCostModel>,
+    mut cost_model: ResMut<CostModel>,
+    clock: Res<FrameClock>,
     models: Res<Assets<TreeModel>>,
     time: Res<Time<Real>>,
     mut diagnostics: ResMut<LodDiagnostics>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
-    let calibration = &cost_model.calibration;
-    let factor = if cost_model.online {
-        cost_model.render_correction.factor()
-    } else {
-        1.0
-    };
-    let costs = PrimitiveCosts::from_calibration(calibration, factor)
+    let scales = cost_model.family_scales();
+    let costs = cost_model
+        .primitive_costs()
         .within_viewport(frame.viewport_pixels);
-    let logic = match (cost_model.online, cost_model.overhead) {
-        (true, Some(overhead)) => overhead,
-        _ => crate::cost::logic_time(
-            &calibration.logic,
-            frame.trees.len() as u32,
-            budget.target_ms,
-        ),
-    };
+    let visible_instances = frame.trees.len() as u32;
+    let logic = cost_model.logic_time(visible_instances);
+    let overlap = cost_model.overlap();
+    let fixed = cost_model.render_fixed();
     let target = (budget.target_ms.max(0.0)) / 1000.0;
-    let model = FrameTimeModel {
-        machine_constant: budget.machine_constant,
-    };
-    let target_below_logic =
-        target <= logic && budget.mode != LodMode::Unlimited && budget.mode != LodMode::Static;
+    let available = overlap.rendering_time(logic, target);
+    let target_below_logic = available <= 0.0
+        && budget.mode != LodMode::Unlimited
+        && budget.mode != LodMode::Static;
     if target_below_logic {
         let now = time.elapsed_secs();
         let since = *frame.target_below_logic_since.get_or_insert(now);
@@ -774,8 +629,7 @@ fn hand_out_time(
         frame.target_below_logic_since = None;
         frame.warned_target = false;
     }
-    let fixed = calibration.fixed_time() * factor;
-    let rendering = (model.rendering_time(logic, target) - fixed.max(0.0)).max(0.0);
+    let rendering = (available - fixed).max(0.0);
 
     // The models by `VisibleTree::model`, looked up once a frame.
     let tree_models: Vec<Option<&TreeModel>> =
@@ -791,6 +645,13 @@ fn hand_out_time(
     }
 
     let mut predicted = 0.0f32;
+    // What of it went to lines and to points (the rest to triangles).
+    let mut parts = select::Selected::default();
+    let mut take = |chosen: select::Selected| {
+        parts.lines += chosen.lines;
+        parts.points += chosen.points;
+        chosen
+    };
     let mut truncated = 0;
     let mut wasted = 0.0;
     let mut undrawn = 0;
@@ -802,11 +663,11 @@ fn hand_out_time(
                 };
                 let unlimited = budget.mode == LodMode::Unlimited;
                 if tree.trunk_visible {
-                    predicted += if unlimited {
+                    predicted += take(if unlimited {
                         select::trunk_tc(m, &tree.view, &costs, f32::INFINITY, list)
                     } else {
                         select::trunk_static(m, &tree.view, &costs, budget.line_widths, list)
-                    }
+                    })
                     .cost;
                 }
                 let method = if unlimited {
@@ -814,7 +675,8 @@ fn hand_out_time(
                 } else {
                     LeafMethod::Static(budget.point_sizes.min.max(1))
                 };
-                predicted += tree_leaves(m, tree, &frame.groups, &costs, method, 0.0, list).cost;
+                predicted +=
+                    take(tree_leaves(m, tree, &frame.groups, &costs, method, 0.0, list)).cost;
             }
         }
         LodMode::Tc | LodMode::Tclod => {
@@ -851,7 +713,8 @@ fn hand_out_time(
                     &frame.complexities,
                     rendering,
                     |i, given| {
-                        let chosen = search(i, given, &mut lists[objects[i].tree as usize]);
+                        let chosen =
+                            take(search(i, given, &mut lists[objects[i].tree as usize]));
                         Fit {
                             used: chosen.cost,
                             level: 0,
@@ -911,7 +774,7 @@ fn hand_out_time(
                     let object = objects[i];
                     if let Some(level) = allocation.level {
                         let time = frame.rung_times[i][level as usize];
-                        search(i, time, &mut lists[object.tree as usize]);
+                        take(search(i, time, &mut lists[object.tree as usize]));
                         let key = (trees[object.tree as usize].entity, object.leaves);
                         frame.next_previous.insert(key, level);
                     }
@@ -932,18 +795,45 @@ fn hand_out_time(
             counts += info.slot.counts(list);
         }
     }
-    frame.last_uncorrected = Some((predicted + fixed) / factor);
+    // The selection by family, priced as the calibration alone would: what the cost
+    // model learns from once the frame is measured.
+    let triangles = (predicted - parts.lines - parts.points).max(0.0);
+    let triangle_vertices = (counts.triangles as f32 * costs.triangle).min(triangles);
+    let priced = FamilyTimes {
+        triangles: triangle_vertices,
+        triangle_pixels: triangles - triangle_vertices,
+        lines: parts.lines,
+        points: parts.points,
+    };
+    let render = fixed + predicted;
+    let frame_time = overlap.frame_time(logic, render);
+    cost_model.record(FramePrediction {
+        frame: clock.frame,
+        visible_instances,
+        calibrated: priced.unscaled(scales),
+        logic,
+        render,
+        frame_time,
+    });
+    let measured = cost_model.last_learned().copied().unwrap_or_default();
     *diagnostics = LodDiagnostics {
+        frame: clock.frame,
+        target_ms: budget.target_ms,
         visible_objects: frame.objects.len() as u32,
-        visible_instances: frame.trees.len() as u32,
+        visible_instances,
         logic_ms: logic * 1000.0,
         render_budget_ms: rendering * 1000.0,
-        predicted_render_ms: predicted * 1000.0,
-        predicted_frame_ms: crate::budget::combined_frame_time(logic, predicted + fixed) * 1000.0,
-        measured_frame_ms: time.delta_secs() * 1000.0,
+        render_fixed_ms: fixed * 1000.0,
+        predicted_render_ms: render * 1000.0,
+        predicted_frame_ms: frame_time * 1000.0,
+        measured_frame: measured.measured.frame,
+        measured_frame_ms: measured.measured.interval * 1000.0,
+        measured_logic_ms: measured.measured.logic * 1000.0,
+        measured_render_ms: measured.measured.render * 1000.0,
+        measured_frame_predicted_ms: measured.predicted.frame_time * 1000.0,
         wasted_ms: wasted * 1000.0,
         overrun_ms: (predicted - rendering).max(0.0) * 1000.0,
-        cost_factor: factor,
+        learned: cost_model.learned(),
         counts,
         truncated,
         undrawn,
@@ -1000,65 +890,4 @@ fn write_draw_lists(
         }
     }
     diagnostics.select_stage_ms = start.elapsed().as_secs_f32() * 1000.0;
-}
-
-/// Installs the calibration [`FrameBudget::calibration`] chooses, when the choice or the
-/// adapter changes; a new calibration restarts the online correction.
-fn load_calibration(
-    budget: Res<FrameBudget>,
-    adapter: Option<Res<AdapterIdentity>>,
-    dir: Res<CalibrationDir>,
-    mut model: ResMut<LodCostModel>,
-    mut loaded: Local<Option<(CalibrationChoice, Option<AdapterIdentity>)>>,
-) {
-    // Compared in place: this runs every frame, and cloning the key would allocate.
-    if loaded.as_ref().is_some_and(|(choice, seen)| {
-        *choice == budget.calibration && seen.as_ref() == adapter.as_deref()
-    }) {
-        return;
-    }
-    *loaded = Some((budget.calibration.clone(), adapter.as_deref().cloned()));
-    let chosen = match (&budget.calibration, adapter.as_deref()) {
-        (CalibrationChoice::Keep, _) | (CalibrationChoice::Adapter, None) => return,
-        (CalibrationChoice::File(path), _) => {
-            match crate::cost::read_calibration(std::path::Path::new(path)) {
-                Ok(c) => {
-                    info!("cost model: calibration {path} ({})", c.adapter);
-                    c
-                }
-                Err(e) => {
-                    error!("cost model: calibration {path}: {e}; using the default costs");
-                    Calibration::default()
-                }
-            }
-        }
-        (CalibrationChoice::Adapter, Some(adapter)) => {
-            let search = crate::cost::find_calibration(&dir.0, adapter);
-            for (path, e) in &search.refused {
-                error!("cost model: ignoring {}: {e}", path.display());
-            }
-            match search.found {
-                Some((path, c)) => {
-                    info!(
-                        "cost model: calibration {} for {}",
-                        path.display(),
-                        adapter.name
-                    );
-                    c
-                }
-                None => {
-                    warn!(
-                        "cost model: no calibration for adapter `{}` in {}; using the default \
-                         costs (measure one with `cargo run --release --example forest -- --calibrate`)",
-                        adapter.name,
-                        dir.0.display()
-                    );
-                    Calibration::default()
-                }
-            }
-        }
-    };
-    model.calibration = chosen;
-    model.render_correction.reset();
-    model.overhead = None;
 }

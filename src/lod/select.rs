@@ -18,7 +18,7 @@
 
 use core::ops::Range;
 
-use crate::cost::Calibration;
+pub use crate::cost::PrimitiveCosts;
 use crate::draw::{LineRun, PointRun, TreeDrawList};
 use crate::tree::{PixelRange, Projection, TreeModel};
 
@@ -29,106 +29,6 @@ pub const PROJECTED_LENGTH_FACTOR: f32 = 0.8;
 /// A leaf group's projected area over `n · a_h · s² / z²`: half the leaves face the
 /// camera (thesis T-4.4).
 const LEAF_FACING: f32 = 1.0 / 1.8;
-
-/// Predicted time of primitives, per primitive (fixed per-frame parts are accounted for
-/// once per frame, not here), in seconds.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PrimitiveCosts {
-    /// Per triangle.
-    pub triangle: f32,
-    /// Per covered pixel of triangles.
-    pub triangle_pixel: f32,
-    /// Per line, by width (index 0 = 1 px).
-    pub line: Vec<f32>,
-    /// Per covered pixel of lines, by width.
-    pub line_pixel: Vec<f32>,
-    /// Per point, by size (index 0 = 1 px).
-    pub point: Vec<f32>,
-    /// Per covered pixel of points, by size.
-    pub point_pixel: Vec<f32>,
-    /// The most pixels one object (a trunk, a tree's leaves) or one batch of primitives
-    /// can cover: the viewport's. A tree at the camera projects to millions of pixels per
-    /// triangle, but its triangles together fill the screen, no more (the depth test
-    /// rejects what is hidden before it is shaded).
-    pub max_pixels: f32,
-}
-
-impl PrimitiveCosts {
-    /// The per-primitive parts of a calibration, each scaled by `scale` (the machine
-    /// constant or an online correction).
-    pub fn from_calibration(calibration: &Calibration, scale: f32) -> Self {
-        let scale = if scale.is_finite() && scale > 0.0 {
-            scale
-        } else {
-            1.0
-        };
-        let clean = |x: f32| {
-            if x.is_finite() {
-                x.max(0.0) * scale
-            } else {
-                0.0
-            }
-        };
-        Self {
-            triangle: clean(calibration.triangles.per_primitive),
-            triangle_pixel: clean(calibration.triangles.per_pixel),
-            line: calibration
-                .lines
-                .iter()
-                .map(|c| clean(c.per_primitive))
-                .collect(),
-            line_pixel: calibration
-                .lines
-                .iter()
-                .map(|c| clean(c.per_pixel))
-                .collect(),
-            point: calibration
-                .points
-                .iter()
-                .map(|c| clean(c.per_primitive))
-                .collect(),
-            point_pixel: calibration
-                .points
-                .iter()
-                .map(|c| clean(c.per_pixel))
-                .collect(),
-            max_pixels: f32::INFINITY,
-        }
-    }
-
-    /// The same costs with each object's coverage capped at `viewport_pixels` (ignored
-    /// unless positive).
-    pub fn within_viewport(mut self, viewport_pixels: f32) -> Self {
-        if viewport_pixels > 0.0 {
-            self.max_pixels = viewport_pixels;
-        }
-        self
-    }
-
-    fn pick(values: &[f32], size: u32) -> f32 {
-        let i = (size.max(1) as usize - 1).min(values.len().saturating_sub(1));
-        values.get(i).copied().unwrap_or(0.0)
-    }
-
-    /// `count` triangles of `area` pixels each, covering at most a screenful together.
-    pub fn triangles(&self, count: u32, area: f32) -> f32 {
-        let n = count as f32;
-        n * self.triangle + self.triangle_pixel * (n * area.max(0.0)).min(self.max_pixels)
-    }
-
-    /// `count` lines `width` pixels wide, `length` pixels long in total, covering at most a
-    /// screenful together.
-    pub fn lines(&self, width: u32, count: u32, length: f32) -> f32 {
-        let covered = (length * width as f32).min(self.max_pixels);
-        count as f32 * Self::pick(&self.line, width) + Self::pick(&self.line_pixel, width) * covered
-    }
-
-    /// `count` points of `size` pixels.
-    pub fn points(&self, size: u32, count: u32) -> f32 {
-        let s = size as f32;
-        count as f32 * (Self::pick(&self.point, size) + Self::pick(&self.point_pixel, size) * s * s)
-    }
-}
 
 /// How one tree instance is seen this frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -147,6 +47,10 @@ pub struct TreeView {
 pub struct Selected {
     /// Predicted rendering time, seconds.
     pub cost: f32,
+    /// The part of `cost` spent on lines (the rest on triangles and points).
+    pub lines: f32,
+    /// The part of `cost` spent on points.
+    pub points: f32,
     /// The time was below the cheapest representation, which is drawn anyway.
     pub truncated: bool,
 }
@@ -223,6 +127,7 @@ pub fn trunk_tc(
     Selected {
         cost: costs.triangles(count, area),
         truncated: affordable < minimum.min(total),
+        ..Selected::default()
     }
 }
 
@@ -304,10 +209,11 @@ pub fn trunk_static(
     let (drawn, k) = static_lines(model, px, widths, out);
     out.trunk_triangles = thick_end(model, k);
     let area = trunk_cost_area(model, px, costs);
+    let lines = lines_cost(&out.trunk_lines, drawn, model, costs, px, k);
     Selected {
-        cost: lines_cost(&out.trunk_lines, drawn, model, costs, px, k)
-            + trunk_triangle_cost(model, costs, k, area),
-        truncated: false,
+        cost: lines + trunk_triangle_cost(model, costs, k, area),
+        lines,
+        ..Selected::default()
     }
 }
 
@@ -352,7 +258,7 @@ pub fn trunk_tclod(
             out.trunk_triangles = thick_triangles;
             Selected {
                 cost: thick,
-                truncated: false,
+                ..Selected::default()
             }
         } else {
             out.trunk_lines.push(LineRun {
@@ -362,7 +268,9 @@ pub fn trunk_tclod(
             out.trunk_triangles = thick_end(model, n);
             Selected {
                 cost: line,
+                lines: line,
                 truncated: line > time,
+                ..Selected::default()
             }
         };
     }
@@ -396,11 +304,14 @@ pub fn trunk_tclod(
     } else {
         return trunk_tc(model, view, costs, time, out);
     };
+    let lines = lines_cost(&out.trunk_lines, dropped, model, costs, px, k);
     clip_lines(&mut out.trunk_lines, dropped, k);
     out.trunk_triangles = thick_end(model, k);
     Selected {
         cost: used,
+        lines,
         truncated: used > time,
+        ..Selected::default()
     }
 }
 
@@ -516,15 +427,17 @@ pub fn leaves(
                 write_group(&leaves, 0, true, n, 1, out);
                 Selected {
                     cost: triangle_leaf * n as f32,
-                    truncated: false,
+                    ..Selected::default()
                 }
             }
             LeafMethod::Static(size) => {
                 let (points, far, tris) = static_split(n, area, size);
                 write_group(&leaves, points, far, tris, size, out);
+                let point_cost = costs.points(size, points);
                 Selected {
-                    cost: costs.points(size, points) + triangle_leaf * tris as f32,
-                    truncated: false,
+                    cost: point_cost + triangle_leaf * tris as f32,
+                    points: point_cost,
+                    ..Selected::default()
                 }
             }
             LeafMethod::Tclod(sizes) => {
@@ -533,6 +446,7 @@ pub fn leaves(
         };
         time_left = (time_left - chosen.cost).max(0.0);
         total.cost += chosen.cost;
+        total.points += chosen.points;
         total.truncated |= chosen.truncated;
     }
     total
@@ -617,6 +531,7 @@ fn group_tc(
     Selected {
         cost: triangle_leaf * count as f32,
         truncated: affordable == 0,
+        ..Selected::default()
     }
 }
 
@@ -656,17 +571,21 @@ fn tclod_choice(
 ) -> (TclodChoice, Selected) {
     let min = sizes.min.max(1);
     let max = largest_point(area, groups, sizes);
-    let cost_at = |size: u32| {
+    // (The whole cost, and its points' part.)
+    let split_at = |size: u32| {
         let (points, _, tris) = static_split(n, area, size);
-        costs.points(size, points) + triangle_leaf * tris as f32
+        let point_cost = costs.points(size, points);
+        (point_cost + triangle_leaf * tris as f32, point_cost)
     };
+    let cost_at = |size: u32| split_at(size).0;
     let fits = |size: u32| {
-        let cost = cost_at(size);
+        let (cost, points) = split_at(size);
         (cost <= time).then_some((
             TclodChoice::Split(size),
             Selected {
                 cost,
-                truncated: false,
+                points,
+                ..Selected::default()
             },
         ))
     };
@@ -702,6 +621,8 @@ fn tclod_choice(
         TclodChoice::FarPoints { size: max, count },
         Selected {
             cost: each * count as f32,
+            lines: 0.0,
+            points: each * count as f32,
             truncated: affordable == 0,
         },
     )
@@ -812,9 +733,12 @@ pub fn leaves_at_depth(
         push(out, far_first.start..far_first.start + tris, 0..0, size);
         (0, tris)
     };
-    let cost = costs.points(size, points) + triangle_leaf * tris as f32;
+    let point_cost = costs.points(size, points);
+    let cost = point_cost + triangle_leaf * tris as f32;
     Selected {
         cost,
+        lines: 0.0,
+        points: point_cost,
         truncated: matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_)) && cost > time,
     }
 }

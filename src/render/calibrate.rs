@@ -9,9 +9,8 @@
 //!    family only — triangles (full detail), lines of one width, points of one size —
 //!    at several total primitive counts and, for triangles and lines, two distances (so
 //!    covered pixels vary apart from the count). Each configuration's time is the median
-//!    pass time from GPU timestamps (Bevy's `RenderDiagnosticsPlugin`), or, without
-//!    timestamps or on a software rasteriser (whose timestamps miss the fill, see
-//!    [`AdapterIdentity::cpu`]), the median frame time less that of an empty frame. Pixels are the LOD's
+//!    of the render world's time ([`FrameSample::render`](crate::cost::FrameSample::render)) less that of an empty frame,
+//!    which is kept as [`Calibration::render_fixed`]. Pixels are the LOD's
 //!    own estimates ([`crate::lod::select`]), so the fitted per-pixel parts are in the
 //!    units the budget predicts with. Each family, and each width and size, is fitted
 //!    with [`fit_nonnegative_cost`]: points' pixels follow their count at one size, so
@@ -20,19 +19,18 @@
 //! 2. **Logic**: the scene's forest comes back, and the camera walks two sampling paths
 //!    at a corner of it — turning from looking away to looking at its centre (visible
 //!    count rising from none to most of the forest), and back (falling) — at a few
-//!    targets in TCLOD mode. Each position's logic time is the median of the frame time
-//!    less the pass time: everything the budget must leave to the rest of the frame (app
-//!    logic, the Sherwood stages and their search, other rendering). The pass time is the
-//!    GPU timestamps' where they are used for the rendering benchmark, else the pass as
-//!    the rendering costs just measured predict it.
+//!    targets in TCLOD mode. Each position's logic time is the median of the main world's
+//!    update ([`FrameSample::logic`](crate::cost::FrameSample::logic)): app logic, the Sherwood stages and their search,
+//!    everything but the wait for the render world.
 //!
 //! At the end the calibration is written (by default to
 //! `assets/calibration/<adapter>.calibration.ron`, where [`CalibrationChoice::Adapter`]
-//! finds it), installed in [`LodCostModel`], and [`CalibrationProgress::outcome`] is set;
-//! the camera, budget and wind settings are restored. A progress bar is printed on the
-//! terminal and a progress line shown on screen.
+//! finds it), installed in the [`CostModel`], and [`CalibrationProgress::outcome`] is set;
+//! the camera, budget, cost and wind settings are restored. A progress bar is printed on
+//! the terminal and a progress line shown on screen. Frames are only measured when every
+//! pipeline was ready ([`FrameSample::complete`](crate::cost::FrameSample::complete)).
 //!
-//! [`CalibrationChoice::Adapter`]: crate::lod::CalibrationChoice::Adapter
+//! [`CalibrationChoice::Adapter`]: crate::cost::CalibrationChoice::Adapter
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -41,18 +39,17 @@ use std::time::Instant;
 use bevy::prelude::*;
 
 use crate::cost::{
-    AdapterIdentity, Calibration, CostSample, LinearCost, LogicTable, calibration_file_name,
+    AdapterIdentity, Calibration, CalibrationDir, CostModel, CostSample, CostSettings,
+    FrameSamples, LinearCost, LogicTable, calibration_file_name,
     fit_nonnegative_cost, fit_sized_costs,
 };
 use crate::culling::ForestCulling;
 use crate::draw::{LineRun, PointRun, TreeDrawList};
 use crate::ecosystem::TreeInstance;
 use crate::lod::select::{PROJECTED_LENGTH_FACTOR, TreeView, group_area, trunk_triangle_area};
-use crate::lod::{CalibrationDir, FrameBudget, LodCostModel, LodDiagnostics, LodMode};
+use crate::lod::{FrameBudget, LodDiagnostics, LodMode};
 use crate::tree::{Projection, TreeModel};
 use crate::wind::WindSettings;
-
-use super::ForestRenderStats;
 
 /// What the calibration run measures. The defaults took about 25 minutes on a 2-core
 /// machine rendering with lavapipe (137 configurations, frames of up to a second).
@@ -184,18 +181,16 @@ impl Step {
 /// Frame measurements of one step.
 #[derive(Default)]
 struct Measured {
-    frame_ms: Vec<f32>,
-    pass_ms: Vec<Option<f32>>,
+    render_ms: Vec<f32>,
+    logic_ms: Vec<f32>,
     visible: Vec<u32>,
-    /// The installed calibration's prediction of the pass, ms.
-    predicted_pass_ms: Vec<f32>,
 }
 
 struct Saved {
     camera: Transform,
     budget: FrameBudget,
     wind: bool,
-    online: bool,
+    cost: CostSettings,
 }
 
 #[derive(Resource, Default)]
@@ -210,13 +205,11 @@ struct RunState {
     /// The forest's instances: bounds of their positions.
     forest_min: Vec3,
     forest_max: Vec3,
-    empty_frame_ms: f32,
+    /// The render world's time with nothing drawn, ms.
+    empty_render_ms: f32,
     render_samples: Vec<(Family, u32, CostSample)>,
     logic_samples: Vec<(f32, u32, f32)>,
     step_started: Option<Instant>,
-    /// Pass times from GPU timestamps (a hardware adapter that has them), else frame
-    /// times less the empty frame's.
-    use_timestamps: bool,
     finished: bool,
 }
 
@@ -287,10 +280,9 @@ fn run_calibration(
     mut cameras: Query<(&mut Transform, &Camera, Option<&crate::view::LodView>), With<Camera3d>>,
     mut budget: ResMut<FrameBudget>,
     mut wind: ResMut<WindSettings>,
-    mut cost_model: ResMut<LodCostModel>,
-    stats: Res<ForestRenderStats>,
+    (mut cost_model, mut cost_settings): (ResMut<CostModel>, ResMut<CostSettings>),
+    samples: Res<FrameSamples>,
     diagnostics: Res<LodDiagnostics>,
-    time: Res<Time<Real>>,
 ) {
     let state = &mut *state;
     if state.finished {
@@ -333,9 +325,10 @@ fn run_calibration(
             camera: *camera_transform,
             budget: budget.clone(),
             wind: wind.enabled,
-            online: cost_model.online,
+            cost: cost_settings.clone(),
         });
-        state.use_timestamps = adapter.as_deref().is_some_and(|a| !a.cpu);
+        // The benchmark measures the calibration's own costs: nothing is learned meanwhile.
+        cost_settings.online = false;
         progress.total = state.plan.len() as u32;
     }
     let Some(model_handle) = state.model.clone() else {
@@ -411,12 +404,13 @@ fn run_calibration(
             }
         }
     } else if state.frame_in_step > settings.settle_frames {
+        // (Samples arrive a frame or two late: the settling frames cover that.)
         let m = &mut state.measured;
-        m.frame_ms.push(time.delta_secs() * 1000.0);
-        m.pass_ms.push(stats.gpu_time_ms.map(|t| t as f32));
+        for sample in samples.arrived().iter().filter(|s| s.is_usable()) {
+            m.render_ms.push(sample.render * 1000.0);
+            m.logic_ms.push(sample.logic * 1000.0);
+        }
         m.visible.push(diagnostics.visible_instances);
-        m.predicted_pass_ms
-            .push(diagnostics.predicted_render_ms + cost_model.calibration.fixed_time() * 1000.0);
     }
     state.frame_in_step += 1;
     let measuring_done =
@@ -436,14 +430,10 @@ fn run_calibration(
 
     // The step is measured.
     let m = std::mem::take(&mut state.measured);
-    let frame_ms = median(m.frame_ms.iter().copied()).unwrap_or(0.0);
-    // Timestamps for every measured frame, or none used.
-    let pass_ms = (state.use_timestamps && m.pass_ms.iter().all(Option::is_some))
-        .then(|| median(m.pass_ms.iter().flatten().copied()))
-        .flatten();
+    let render_ms = median(m.render_ms.iter().copied());
     match step {
         Step::WarmUp => {}
-        Step::Empty => state.empty_frame_ms = frame_ms,
+        Step::Empty => state.empty_render_ms = render_ms.unwrap_or(0.0),
         Step::Render {
             family,
             size,
@@ -454,38 +444,23 @@ fn run_calibration(
             let depth = bench_depth(model, tree_fraction, focal, viewport.y as f32);
             let (per_tree_primitives, per_tree_pixels) =
                 bench_amounts(model, family, size, depth, focal);
-            let time_ms = pass_ms.unwrap_or((frame_ms - state.empty_frame_ms).max(0.0));
-            state.render_samples.push((
-                family,
-                size,
-                CostSample {
-                    primitives: n * per_tree_primitives,
-                    pixels: n * per_tree_pixels,
-                    time: time_ms / 1000.0,
-                },
-            ));
+            if let Some(render_ms) = render_ms {
+                state.render_samples.push((
+                    family,
+                    size,
+                    CostSample {
+                        primitives: n * per_tree_primitives,
+                        pixels: n * per_tree_pixels,
+                        time: (render_ms - state.empty_render_ms).max(0.0) / 1000.0,
+                    },
+                ));
+            }
         }
         Step::Logic { target_ms, .. } => {
-            let rest = if pass_ms.is_some() {
-                median(
-                    m.frame_ms
-                        .iter()
-                        .zip(m.pass_ms.iter().flatten())
-                        .map(|(f, p)| (f - p).max(0.0)),
-                )
-            } else {
-                // The pass as the fresh rendering calibration predicts it.
-                median(
-                    m.frame_ms
-                        .iter()
-                        .zip(&m.predicted_pass_ms)
-                        .map(|(f, p)| (f - p).max(0.0)),
-                )
-            };
             let mut visible = m.visible.clone();
             visible.sort_unstable();
             let visible = visible.get(visible.len() / 2).copied().unwrap_or(0);
-            if let Some(ms) = rest {
+            if let Some(ms) = median(m.logic_ms.iter().copied()) {
                 state.logic_samples.push((target_ms, visible, ms / 1000.0));
             }
         }
@@ -493,22 +468,7 @@ fn run_calibration(
     state.step += 1;
     state.frame_in_step = 0;
     progress.done = state.step as u32;
-    let next_is_logic = matches!(state.plan.get(state.step), Some(Step::Logic { .. }));
-    let mut failure = None;
-    if next_is_logic && !matches!(step, Step::Logic { .. }) {
-        // The logic benchmark needs the pass predicted with what was just measured.
-        match fit(&state.render_samples, &[], &AdapterIdentity::default()) {
-            Ok(rendering) => {
-                cost_model.calibration = Calibration {
-                    logic: Vec::new(),
-                    ..rendering
-                };
-                cost_model.online = false;
-            }
-            Err(e) => failure = Some(e),
-        }
-    }
-    if state.step < state.plan.len() && failure.is_none() {
+    if state.step < state.plan.len() {
         return;
     }
 
@@ -521,13 +481,15 @@ fn run_calibration(
         *camera_transform = saved.camera;
         *budget = saved.budget;
         wind.enabled = saved.wind;
-        cost_model.online = saved.online;
+        *cost_settings = saved.cost;
     }
     let adapter = adapter.map(|a| a.clone()).unwrap_or_default();
-    let fitted = match failure {
-        Some(e) => Err(e),
-        None => fit(&state.render_samples, &state.logic_samples, &adapter),
-    };
+    let fitted = fit(
+        &state.render_samples,
+        &state.logic_samples,
+        state.empty_render_ms / 1000.0,
+        &adapter,
+    );
     let outcome = fitted.and_then(|calibration| {
         let path = settings
             .out
@@ -535,9 +497,7 @@ fn run_calibration(
             .unwrap_or_else(|| calibration_dir.0.join(calibration_file_name(&adapter.name)));
         write(&path, &calibration)?;
         print_report(&calibration, &state.render_samples);
-        cost_model.calibration = calibration;
-        cost_model.render_correction.reset();
-        cost_model.overhead = None;
+        cost_model.set_calibration(calibration);
         Ok(path)
     });
     progress.label = match &outcome {
@@ -730,6 +690,7 @@ fn logic_pose(min: Vec3, max: Vec3, turn: f32) -> Transform {
 fn fit(
     render: &[(Family, u32, CostSample)],
     logic: &[(f32, u32, f32)],
+    render_fixed: f32,
     adapter: &AdapterIdentity,
 ) -> Result<Calibration, String> {
     let of = |family: Family| -> Vec<(u32, CostSample)> {
@@ -766,6 +727,7 @@ fn fit(
         lines,
         points,
         logic,
+        render_fixed,
     })
 }
 
@@ -821,6 +783,10 @@ fn print_report(calibration: &Calibration, render: &[(Family, u32, CostSample)])
             rms * 100.0
         );
     }
+    println!(
+        "  render world with nothing drawn: {:.2} ms",
+        calibration.render_fixed * 1000.0
+    );
     println!("  logic (visible instances → ms, per target):");
     for table in &calibration.logic {
         let row: Vec<String> = table

@@ -89,9 +89,10 @@ pub struct ForestRenderStats {
     /// Views the pass drew into.
     pub views: u32,
     /// GPU time of the pass in milliseconds, summed over views, when Bevy's
-    /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries. On a
-    /// software rasteriser (lavapipe) it misses the pixel fill, which runs after the
-    /// timestamps on the rasteriser threads; the cost model ignores it there.
+    /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries. The
+    /// cost model does not use it: it learns from the render world's whole time
+    /// ([`FrameSample::render`](crate::cost::FrameSample::render)), which also covers
+    /// Bevy's own passes and the wait for the GPU.
     pub gpu_time_ms: Option<f64>,
 }
 
@@ -113,7 +114,7 @@ impl Plugin for ForestRenderPlugin {
                 PreUpdate,
                 (
                     receive_stats,
-                    identify_adapter.before(crate::lod::LoadCalibration),
+                    identify_adapter.before(crate::cost::CostSystems::LoadCalibration),
                 ),
             );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
@@ -121,6 +122,7 @@ impl Plugin for ForestRenderPlugin {
         };
         render_app
             .insert_resource(mailbox)
+            .init_resource::<crate::cost::DrawIncomplete>()
             .init_resource::<ForestFrame>()
             .init_resource::<ForestBuffers>()
             .init_resource::<SpecializedRenderPipelines<ForestPipeline>>()
@@ -165,8 +167,6 @@ fn receive_stats(
     mailbox: Res<StatsMailbox>,
     mut stats: ResMut<ForestRenderStats>,
     store: Option<Res<DiagnosticsStore>>,
-    measured: Option<ResMut<crate::lod::MeasuredPassTime>>,
-    adapter: Option<Res<crate::cost::AdapterIdentity>>,
 ) {
     let Ok(latest) = mailbox.0.lock() else {
         return;
@@ -178,12 +178,6 @@ fn receive_stats(
         .as_deref()
         .and_then(|s| s.get(&GPU_TIME))
         .and_then(bevy::diagnostic::Diagnostic::value);
-    // A software rasteriser's timestamps miss the fill: the cost model must not learn
-    // from them (see `AdapterIdentity::cpu`).
-    let trustworthy = adapter.is_some_and(|a| !a.cpu);
-    if let (Some(mut measured), Some(ms), true) = (measured, latest.gpu_time_ms, trustworthy) {
-        measured.0 = Some(ms as f32);
-    }
     stats.set_if_neq(latest);
 }
 
@@ -646,15 +640,17 @@ fn draw_forest(
     buffers: Res<ForestBuffers>,
     bind_groups: Option<Res<ForestBindGroups>>,
     cache: Res<PipelineCache>,
+    mut incomplete: ResMut<crate::cost::DrawIncomplete>,
     mut ctx: RenderContext,
 ) {
-    let Some(bind_groups) = bind_groups else {
-        return;
-    };
     let starts = buffers.kind_starts;
     if starts[4] == 0 {
         return;
     }
+    let Some(bind_groups) = bind_groups else {
+        incomplete.0 = true;
+        return;
+    };
     let (camera, target, depth, view_offset, pipelines, resolution_override) = view.into_inner();
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
@@ -683,6 +679,8 @@ fn draw_forest(
         }
         // Pipelines compile asynchronously: skip a kind until its pipeline is ready.
         let Some(pipeline) = cache.get_render_pipeline(pipelines.0[k]) else {
+            // This frame's time is not a real frame's (see `DrawIncomplete`).
+            incomplete.0 = true;
             continue;
         };
         pass.set_render_pipeline(pipeline);

@@ -1,0 +1,388 @@
+//! Calibrations: what an adapter's primitives and an app's logic cost, measured once and
+//! saved per adapter (`*.calibration.ron`).
+
+use serde::{Deserialize, Serialize};
+
+use super::LinearCost;
+
+/// Logic time against the number of visible instances at one target frame time, from
+/// the logic benchmark; interpolated between the nearest samples at run time.
+#[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LogicTable {
+    /// The target frame time the samples were measured at, ms (the LOD's search, and so
+    /// the logic time, depends on it when LOD is view-dependent).
+    pub target_ms: f32,
+    /// `(visible instances, seconds)`, sorted by visible count.
+    pub samples: Vec<(u32, f32)>,
+}
+
+impl LogicTable {
+    /// A table from samples in any order: non-finite or negative times are dropped, and
+    /// samples whose visible counts lie within [`LogicTable::merge_gap`] of a run's first
+    /// count are averaged into one (count and time). Frame times on a shared machine vary
+    /// by tens of percent, so two samples one instance apart would otherwise make a
+    /// segment whose slope is noise (the lavapipe calibration had 533 → 0 ms and
+    /// 534 → 20 ms).
+    pub fn new(target_ms: f32, mut samples: Vec<(u32, f32)>) -> Self {
+        samples.retain(|s| s.1.is_finite() && s.1 >= 0.0);
+        samples.sort_by_key(|s| s.0);
+        let gap = Self::merge_gap(samples.last().map_or(0, |s| s.0));
+        // (first count of the run, sum of counts, sum of times, samples)
+        let mut runs: Vec<(u32, f64, f64, u32)> = Vec::new();
+        for (n, t) in samples {
+            match runs.last_mut() {
+                Some(run) if n - run.0 <= gap => {
+                    run.1 += f64::from(n);
+                    run.2 += f64::from(t);
+                    run.3 += 1;
+                }
+                _ => runs.push((n, f64::from(n), f64::from(t), 1)),
+            }
+        }
+        Self {
+            target_ms,
+            samples: runs
+                .into_iter()
+                .map(|(_, n, t, k)| {
+                    let k = f64::from(k);
+                    ((n / k).round() as u32, (t / k) as f32)
+                })
+                .collect(),
+        }
+    }
+
+    /// Samples whose visible counts differ by at most this much are one sample: 2% of the
+    /// largest count, at least 2.
+    pub fn merge_gap(largest_count: u32) -> u32 {
+        (largest_count / 50).max(2)
+    }
+
+    /// Logic time with `visible` instances: linear between the two nearest samples;
+    /// outside the sampled range, the nearest end sample extended with the table's
+    /// overall slope (first to last sample, so one noisy end segment cannot send the
+    /// estimate to seconds), never below zero; a single sample is a constant; an empty
+    /// table is 0.
+    pub fn time(&self, visible: u32) -> f32 {
+        let s = &self.samples;
+        let (Some(&first), Some(&last)) = (s.first(), s.last()) else {
+            return 0.0;
+        };
+        if s.len() == 1 {
+            return first.1;
+        }
+        let span = last.0.saturating_sub(first.0);
+        let overall_slope = if span == 0 {
+            0.0
+        } else {
+            (last.1 - first.1) / span as f32
+        };
+        let time = if visible <= first.0 {
+            first.1 - overall_slope * (first.0 - visible) as f32
+        } else if visible >= last.0 {
+            last.1 + overall_slope * (visible - last.0) as f32
+        } else {
+            let i = s.partition_point(|p| p.0 <= visible).clamp(1, s.len() - 1);
+            let (a, b) = (s[i - 1], s[i]);
+            // `max(1)`: the fields are public, so a hand-built table may repeat a count.
+            let t = visible.saturating_sub(a.0) as f32 / b.0.saturating_sub(a.0).max(1) as f32;
+            a.1 + t.min(1.0) * (b.1 - a.1)
+        };
+        time.max(0.0)
+    }
+}
+
+/// Logic time with `visible` instances at target `target_ms` from tables measured at
+/// several targets: each table interpolated in the visible count, then linearly between
+/// the two tables whose targets bracket `target_ms` (the nearest table outside their
+/// range: logic time is not extrapolated in the target). No tables: 0.
+pub fn logic_time(tables: &[LogicTable], visible: u32, target_ms: f32) -> f32 {
+    let mut below: Option<&LogicTable> = None;
+    let mut above: Option<&LogicTable> = None;
+    for table in tables.iter().filter(|t| t.target_ms.is_finite()) {
+        if table.target_ms <= target_ms {
+            if below.is_none_or(|b| table.target_ms > b.target_ms) {
+                below = Some(table);
+            }
+        } else if above.is_none_or(|a| table.target_ms < a.target_ms) {
+            above = Some(table);
+        }
+    }
+    match (below, above) {
+        (Some(b), Some(a)) => {
+            let t = (target_ms - b.target_ms) / (a.target_ms - b.target_ms);
+            let (tb, ta) = (b.time(visible), a.time(visible));
+            tb + t.clamp(0.0, 1.0) * (ta - tb)
+        }
+        (Some(only), None) | (None, Some(only)) => only.time(visible),
+        (None, None) => 0.0,
+    }
+}
+
+/// A saved calibration (`*.calibration.ron`): what this adapter's primitives and logic cost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Calibration {
+    /// The adapter it was measured on (wgpu's adapter name).
+    pub adapter: String,
+    /// The driver (wgpu's driver and driver info).
+    pub driver: String,
+    /// Triangles.
+    pub triangles: LinearCost,
+    /// Lines, per width in pixels from 1 (index 0) up.
+    pub lines: Vec<LinearCost>,
+    /// Points, per size in pixels from 1 (index 0) up.
+    pub points: Vec<LinearCost>,
+    /// Logic time against visible instances, one table per target frame time measured
+    /// (see [`logic_time`]): the main world's update, without the wait for the render
+    /// world.
+    pub logic: Vec<LogicTable>,
+    /// The render world's time for a frame in which the forest draws nothing (Bevy's own
+    /// passes, uploads, the present), seconds. Files written before it was measured read
+    /// the default's.
+    pub render_fixed: f32,
+}
+
+impl Default for Calibration {
+    /// A rough default, used with a warning until a calibration is measured: per-primitive
+    /// costs of this crate's render pass on Mesa lavapipe (a software rasteriser), as
+    /// `pass_benchmark` measured them on a 2-core machine — about 1.1 µs per small
+    /// triangle, 2.6 µs per line and 1.5 µs per point, plus a few ns per covered pixel.
+    /// `pixels` are covered pixels: a line's length × width, a point's size².
+    fn default() -> Self {
+        Self {
+            adapter: "unknown".into(),
+            driver: "unknown".into(),
+            triangles: LinearCost {
+                fixed: 2e-4,
+                per_primitive: 1.1e-6,
+                per_pixel: 5e-9,
+            },
+            lines: vec![
+                LinearCost {
+                    fixed: 2e-4,
+                    per_primitive: 2.6e-6,
+                    per_pixel: 5e-9,
+                };
+                20
+            ],
+            points: vec![
+                LinearCost {
+                    fixed: 2e-4,
+                    per_primitive: 1.5e-6,
+                    per_pixel: 1.2e-8,
+                };
+                20
+            ],
+            logic: vec![LogicTable::new(100.0, vec![(0, 2e-3), (1000, 6e-3)])],
+            render_fixed: 5e-3,
+        }
+    }
+}
+
+/// Why a calibration file was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrationError {
+    /// The RON does not parse (the message names line, column and field).
+    #[error("{0}")]
+    Ron(#[from] ron::error::SpannedError),
+    /// A value is out of range.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+impl Calibration {
+    /// Parses and validates a calibration.
+    pub fn from_ron_str(text: &str) -> Result<Self, CalibrationError> {
+        let mut calibration: Self = crate::ron_options().from_str(text)?;
+        // Files written before near-equal counts were merged, or edited by hand.
+        for table in &mut calibration.logic {
+            *table = LogicTable::new(table.target_ms, core::mem::take(&mut table.samples));
+        }
+        let costs = core::iter::once(&calibration.triangles)
+            .chain(&calibration.lines)
+            .chain(&calibration.points);
+        for (i, c) in costs.enumerate() {
+            let values = [c.fixed, c.per_primitive, c.per_pixel];
+            if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
+                return Err(CalibrationError::Invalid(format!(
+                    "cost {i} (triangles, then lines, then points) has a negative or non-finite part"
+                )));
+            }
+        }
+        if !(calibration.render_fixed.is_finite() && calibration.render_fixed >= 0.0) {
+            return Err(CalibrationError::Invalid(
+                "render_fixed must be a finite, non-negative number of seconds".into(),
+            ));
+        }
+        Ok(calibration)
+    }
+
+    /// The fixed per-frame part of the pass: one draw of each family (the fixed part of
+    /// triangles, of the thinnest lines and of the smallest points), seconds.
+    pub fn fixed_time(&self) -> f32 {
+        (self.triangles.fixed
+            + self.lines.first().map_or(0.0, |c| c.fixed)
+            + self.points.first().map_or(0.0, |c| c.fixed))
+        .max(0.0)
+    }
+
+    /// The render world's whole fixed time per frame: [`Calibration::render_fixed`] and
+    /// one draw of each family ([`Calibration::fixed_time`]), seconds.
+    pub fn render_fixed_time(&self) -> f32 {
+        let fixed = if self.render_fixed.is_finite() {
+            self.render_fixed.max(0.0)
+        } else {
+            0.0
+        };
+        fixed + self.fixed_time()
+    }
+
+    /// The logic tables as one line, `(time with nothing visible, time per visible
+    /// instance)` in seconds, at the middle of the targets they were measured at (the
+    /// prior of the learned logic model).
+    pub fn logic_line(&self) -> (f32, f32) {
+        let mut targets: Vec<f32> = self
+            .logic
+            .iter()
+            .map(|t| t.target_ms)
+            .filter(|t| t.is_finite())
+            .collect();
+        targets.sort_by(f32::total_cmp);
+        let target = targets.get(targets.len() / 2).copied().unwrap_or(100.0);
+        let widest = self
+            .logic
+            .iter()
+            .filter_map(|t| t.samples.last().map(|s| s.0))
+            .max()
+            .unwrap_or(0)
+            .max(1);
+        let fixed = logic_time(&self.logic, 0, target);
+        let slope = (logic_time(&self.logic, widest, target) - fixed) / widest as f32;
+        let clean = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
+        (clean(fixed), clean(slope))
+    }
+
+    /// The same calibration with every cost and logic time multiplied by `factor`: a
+    /// machine that much slower (above 1) or faster.
+    pub fn scaled(&self, factor: f32) -> Self {
+        let cost = |c: &LinearCost| LinearCost {
+            fixed: c.fixed * factor,
+            per_primitive: c.per_primitive * factor,
+            per_pixel: c.per_pixel * factor,
+        };
+        Self {
+            triangles: cost(&self.triangles),
+            lines: self.lines.iter().map(cost).collect(),
+            points: self.points.iter().map(cost).collect(),
+            logic: self
+                .logic
+                .iter()
+                .map(|t| LogicTable {
+                    target_ms: t.target_ms,
+                    samples: t.samples.iter().map(|&(n, s)| (n, s * factor)).collect(),
+                })
+                .collect(),
+            render_fixed: self.render_fixed * factor,
+            ..self.clone()
+        }
+    }
+
+    /// The calibration as RON.
+    pub fn to_ron_string(&self) -> Result<String, ron::Error> {
+        ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::default())
+    }
+
+    /// Parses `text`, or falls back to [`Calibration::default`] with the reason.
+    pub fn from_ron_str_or_default(text: &str) -> (Self, Option<CalibrationError>) {
+        match Self::from_ron_str(text) {
+            Ok(c) => (c, None),
+            Err(e) => (Self::default(), Some(e)),
+        }
+    }
+}
+
+/// The adapter the app renders with, as a calibration names it. The render plugin inserts
+/// it once the renderer is up; calibrations are matched against it.
+#[derive(bevy::prelude::Resource, Clone, Debug, PartialEq, Eq, Default)]
+pub struct AdapterIdentity {
+    /// wgpu's adapter name, e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`.
+    pub name: String,
+    /// wgpu's driver and driver info, e.g. `llvmpipe Mesa 22.3.6 (LLVM 15.0.6)`.
+    pub driver: String,
+    /// A software rasteriser (wgpu's `DeviceType::Cpu`, e.g. lavapipe). Its GPU timestamps
+    /// are taken when the draws are handed to the rasteriser threads, before the pixels
+    /// are filled, so they miss most of a pass's cost: the cost model and the calibration
+    /// then measure frame times instead.
+    pub cpu: bool,
+}
+
+/// The file name a calibration of `adapter` is saved under: the adapter name in lower
+/// case, runs of anything but letters and digits as one `-`, then `.calibration.ron`.
+pub fn calibration_file_name(adapter: &str) -> String {
+    let mut name = String::new();
+    for c in adapter.chars() {
+        if c.is_ascii_alphanumeric() {
+            name.push(c.to_ascii_lowercase());
+        } else if !name.ends_with('-') && !name.is_empty() {
+            name.push('-');
+        }
+    }
+    let name = name.trim_end_matches('-');
+    format!(
+        "{}.calibration.ron",
+        if name.is_empty() { "adapter" } else { name }
+    )
+}
+
+/// What [`find_calibration`] found in a directory.
+#[derive(Debug, Default)]
+pub struct CalibrationSearch {
+    /// The calibration for the adapter: one naming the same adapter and driver, else one
+    /// naming the same adapter.
+    pub found: Option<(std::path::PathBuf, Calibration)>,
+    /// Calibration files that could not be read or parsed, with the reason.
+    pub refused: Vec<(std::path::PathBuf, String)>,
+}
+
+/// Reads the calibration file at `path`.
+pub fn read_calibration(path: &std::path::Path) -> Result<Calibration, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    Calibration::from_ron_str(&text).map_err(|e| e.to_string())
+}
+
+/// Looks through the `*.calibration.ron` files of `dir` for one measured on `adapter`.
+/// A missing directory finds nothing; unreadable or malformed files are listed in
+/// [`CalibrationSearch::refused`] and skipped.
+pub fn find_calibration(dir: &std::path::Path, adapter: &AdapterIdentity) -> CalibrationSearch {
+    let mut search = CalibrationSearch::default();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return search;
+    };
+    let mut paths: Vec<std::path::PathBuf> = entries
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.ends_with(".calibration.ron"))
+        })
+        .collect();
+    paths.sort();
+    let mut same_adapter = None;
+    for path in paths {
+        match read_calibration(&path) {
+            Ok(c) if c.adapter == adapter.name && c.driver == adapter.driver => {
+                search.found = Some((path, c));
+                return search;
+            }
+            Ok(c) if c.adapter == adapter.name => {
+                same_adapter.get_or_insert((path, c));
+            }
+            Ok(_) => {}
+            Err(e) => search.refused.push((path, e)),
+        }
+    }
+    search.found = same_adapter;
+    search
+}

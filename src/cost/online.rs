@@ -1,0 +1,534 @@
+//! Learning costs online (pure): a few costs fitted to what each frame measured, with a
+//! calibration as the prior.
+//!
+//! The machine changes in two ways. What things cost relative to each other (a triangle
+//! against a point, the fixed part against the rest) is a property of the renderer and
+//! changes rarely; how fast the machine runs changes within a second (a CPU changing
+//! clock, another process waking). [`CostFilter`] estimates both at once, and tells them
+//! apart by how the regressors vary. [`PriorRegression`] is the plain exponentially
+//! weighted least squares, regularised toward a prior, for a quantity that is measured
+//! directly. Learning happens after a frame from what was measured of it and never feeds
+//! back within the frame: the budget predicts with the current estimates and this
+//! frame's own counts.
+
+/// Exponentially weighted least squares regularised toward a prior: the `θ` that minimises
+/// `Σᵢ wᵢ λ^(ageᵢ) (yᵢ − θ·xᵢ)² + Σⱼ δⱼ (θⱼ − θ⁰ⱼ)²`, where the strength `δⱼ` of the prior
+/// is [`PriorRegression::prior_frames`] frames' worth of regressor `j`'s recent excitation
+/// (its weighted mean square). So the prior always weighs the same against the data,
+/// whatever the units, and a regressor that stays 0 keeps its prior exactly.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PriorRegression<const N: usize> {
+    prior: [f64; N],
+    /// Each parameter stays within these bounds (after the solve).
+    lower: [f64; N],
+    upper: [f64; N],
+    /// How many frames of data the prior is worth. Default: `0.1`.
+    pub prior_frames: f64,
+    /// Time constant of the forgetting, seconds.
+    pub time_constant: f64,
+    gram: [[f64; N]; N],
+    moment: [f64; N],
+    /// Weighted mean square of each regressor, and the total weight it averages.
+    mean_square: [f64; N],
+    weight: f64,
+    theta: [f64; N],
+}
+
+impl<const N: usize> PriorRegression<N> {
+    /// A regression starting at (and regularised toward) `prior`, each parameter kept
+    /// within `lower..=upper`, forgetting with `time_constant` seconds.
+    pub fn new(prior: [f64; N], lower: [f64; N], upper: [f64; N], time_constant: f64) -> Self {
+        let theta = core::array::from_fn(|j| prior[j].clamp(lower[j], upper[j]));
+        Self {
+            prior: theta,
+            lower,
+            upper,
+            prior_frames: 0.1,
+            time_constant,
+            gram: [[0.0; N]; N],
+            moment: [0.0; N],
+            mean_square: [0.0; N],
+            weight: 0.0,
+            theta,
+        }
+    }
+
+    /// The current parameters.
+    pub fn parameters(&self) -> [f64; N] {
+        self.theta
+    }
+
+    /// The prior.
+    pub fn prior(&self) -> [f64; N] {
+        self.prior
+    }
+
+    /// `θ·x`.
+    pub fn predict(&self, x: &[f64; N]) -> f64 {
+        self.theta.iter().zip(x).map(|(t, x)| t * x).sum()
+    }
+
+    /// Learns one observation `y ≈ θ·x` with weight `w` (0..=1), `dt` seconds after the
+    /// previous one. Non-finite inputs, a negative weight or `dt` are ignored.
+    pub fn update(&mut self, x: &[f64; N], y: f64, w: f64, dt: f64) {
+        if !(y.is_finite() && w.is_finite() && w >= 0.0 && dt.is_finite() && dt >= 0.0)
+            || x.iter().any(|v| !v.is_finite())
+        {
+            return;
+        }
+        let forget = if self.time_constant > 0.0 {
+            (-dt / self.time_constant).exp()
+        } else {
+            0.0
+        };
+        for j in 0..N {
+            self.moment[j] = forget * self.moment[j] + w * x[j] * y;
+            for k in 0..N {
+                self.gram[j][k] = forget * self.gram[j][k] + w * x[j] * x[k];
+            }
+        }
+        // The excitation the prior is measured against forgets like the data, but counts
+        // every frame, whatever its weight: a run of outliers does not weaken the prior.
+        self.weight = forget * self.weight + 1.0;
+        for j in 0..N {
+            self.mean_square[j] = forget * self.mean_square[j] + x[j] * x[j];
+        }
+        self.solve();
+    }
+
+    fn solve(&mut self) {
+        let mut a = self.gram;
+        let mut b = self.moment;
+        for j in 0..N {
+            let strength =
+                self.prior_frames * self.mean_square[j] / self.weight.max(1e-12) + 1e-18;
+            a[j][j] += strength;
+            b[j] += strength * self.prior[j];
+        }
+        if let Some(theta) = solve(a, b) {
+            for j in 0..N {
+                let t = theta[j];
+                self.theta[j] = if t.is_finite() {
+                    t.clamp(self.lower[j], self.upper[j])
+                } else {
+                    self.prior[j]
+                };
+            }
+        }
+    }
+
+    /// Forgets everything learned: back to the prior.
+    pub fn reset(&mut self) {
+        *self = Self {
+            prior_frames: self.prior_frames,
+            ..Self::new(self.prior, self.lower, self.upper, self.time_constant)
+        };
+    }
+}
+
+/// Gaussian elimination with partial pivoting; `None` when singular.
+fn solve<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
+    for col in 0..N {
+        let pivot = (col..N).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[pivot][col].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        let pivot_row = a[col];
+        for row in col + 1..N {
+            let f = a[row][col] / pivot_row[col];
+            for k in col..N {
+                a[row][k] -= f * pivot_row[k];
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; N];
+    for row in (0..N).rev() {
+        let rest: f64 = (row + 1..N).map(|k| a[row][k] * x[k]).sum();
+        x[row] = (b[row] - rest) / a[row][row];
+    }
+    Some(x)
+}
+
+/// Down-weights observations far from the prediction (Huber weights): within
+/// [`HUBER_ERRORS`] typical errors an observation counts fully, beyond it in inverse
+/// proportion to its error. The typical error follows about a second of observations,
+/// each capped so that one stall does not open the gate for the next.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobustGate {
+    typical: f32,
+    floor: f32,
+}
+
+/// Observations within this many typical errors of the prediction count fully.
+pub const HUBER_ERRORS: f32 = 3.0;
+
+impl RobustGate {
+    /// A gate whose typical error starts at `initial` and is never taken below `floor`
+    /// (a source with no noise at all would otherwise call any change an outlier).
+    pub fn new(initial: f32, floor: f32) -> Self {
+        Self {
+            typical: initial,
+            floor,
+        }
+    }
+
+    /// The typical error now (never below the floor).
+    pub fn typical(&self) -> f32 {
+        self.typical.max(self.floor)
+    }
+
+    /// The weight of an observation `error` away from the prediction (0..=1).
+    pub fn weight(&self, error: f32) -> f32 {
+        let bound = HUBER_ERRORS * self.typical.max(self.floor);
+        let error = error.abs();
+        if error <= bound || !error.is_finite() {
+            if error.is_finite() { 1.0 } else { 0.0 }
+        } else {
+            bound / error
+        }
+    }
+
+    /// Takes the error of an observation `dt` seconds after the previous one.
+    pub fn observe(&mut self, error: f32, dt: f32) {
+        if !(error.is_finite() && dt.is_finite() && dt > 0.0) {
+            return;
+        }
+        let scale = self.typical.max(self.floor);
+        let alpha = 1.0 - (-dt).exp();
+        self.typical += alpha * (error.abs().min(4.0 * scale) - self.typical);
+    }
+}
+
+/// The largest state a [`CostFilter`] keeps: the speed and up to seven costs.
+const MAX_STATE: usize = 8;
+
+/// A cost learned online: `speed · θ·x`, with `θ` what each regressor costs and `speed`
+/// how much faster or slower than that the machine runs now, estimated together by an
+/// extended Kalman filter on `ln(measured) = ln(speed) + ln(θ·x) + noise`, each cost
+/// kept as a log factor on its prior (`θⱼ = priorⱼ · e^vⱼ`).
+///
+/// Why a filter and not a regression plus a smoothed ratio: a frame off its prediction
+/// may mean that the machine changed speed, or that one regressor's cost is wrong, and
+/// only how the regressors vary tells the two apart. A fast ratio alone would explain
+/// away every error before a regression could see which regressor caused it; a
+/// regression alone would bend its costs at every change of speed. The filter keeps both
+/// uncertainties and splits each error by them: at first the costs are as uncertain as
+/// the calibration (a factor of about 3), and learn quickly from frames whose mix of
+/// regressors varies; once they are known, a change that moves every frame alike goes to
+/// the speed.
+///
+/// Both drift as random walks sized per elapsed second, not per frame, so that the
+/// behaviour does not depend on the frame rate: with known costs the speed follows the
+/// measured ratio with the time constant `speed_seconds` (as an exponential average
+/// would), and a cost follows a lasting change of its own with `costs_seconds`. A
+/// regressor that stays 0 keeps its cost (its prior, if it was never seen).
+///
+/// A frame whose error is beyond [`HUBER_ERRORS`] typical errors counts as if it were at
+/// that bound, unless the frame before was beyond it on the same side: one hitch moves
+/// little, a step in speed is followed from its second frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CostFilter<const N: usize> {
+    prior: [f64; N],
+    lower: [f64; N],
+    upper: [f64; N],
+    speed_seconds: f64,
+    costs_seconds: f64,
+    /// `ln(speed)`, then each cost's log factor on its prior.
+    state: [f64; MAX_STATE],
+    covariance: [[f64; MAX_STATE]; MAX_STATE],
+    gate: RobustGate,
+    /// The previous frame's error was beyond the gate, on this side (−1, 0 or 1).
+    last_outlier: i8,
+}
+
+/// One spread of the calibration's uncertainty, as a log factor: about ×3 either way.
+const PRIOR_SPREAD: f64 = 1.1;
+
+/// The smallest prior a cost takes (a log factor needs a positive base).
+const MIN_PRIOR: f64 = 1e-9;
+
+impl<const N: usize> CostFilter<N> {
+    /// A filter starting at `prior`, each cost kept within `lower..=upper` (clamped to
+    /// positive values), the speed following the machine within `speed_seconds` and the
+    /// costs within `costs_seconds`.
+    pub fn new(
+        prior: [f64; N],
+        lower: [f64; N],
+        upper: [f64; N],
+        speed_seconds: f32,
+        costs_seconds: f32,
+    ) -> Self {
+        assert!(N < MAX_STATE, "a cost filter keeps at most {} costs", MAX_STATE - 1);
+        let prior = prior.map(|p| if p.is_finite() { p.max(MIN_PRIOR) } else { 1.0 });
+        let mut covariance = [[0.0; MAX_STATE]; MAX_STATE];
+        for (i, row) in covariance.iter_mut().enumerate().take(N + 1) {
+            row[i] = PRIOR_SPREAD * PRIOR_SPREAD;
+        }
+        let mut state = [0.0; MAX_STATE];
+        for j in 0..N {
+            state[j + 1] = (prior[j].clamp(lower[j].max(MIN_PRIOR), upper[j]) / prior[j]).ln();
+        }
+        Self {
+            prior,
+            lower: lower.map(|l| l.max(MIN_PRIOR)),
+            upper,
+            speed_seconds: f64::from(speed_seconds).max(1e-3),
+            costs_seconds: f64::from(costs_seconds).max(1e-3),
+            state,
+            covariance,
+            gate: RobustGate::new(0.1, 0.02),
+            last_outlier: 0,
+        }
+    }
+
+    /// How much slower (above 1) the machine runs now than the costs say.
+    pub fn speed(&self) -> f32 {
+        self.state[0].exp() as f32
+    }
+
+    /// What each regressor costs (at speed 1).
+    pub fn costs(&self) -> [f64; N] {
+        core::array::from_fn(|j| self.prior[j] * self.state[j + 1].exp())
+    }
+
+    /// `θ·x`: the cost at speed 1.
+    pub fn base(&self, x: &[f64; N]) -> f64 {
+        self.costs().iter().zip(x).map(|(c, x)| c * x).sum()
+    }
+
+    /// The predicted time of `x`: `speed · θ·x`, seconds.
+    pub fn predict(&self, x: &[f64; N]) -> f32 {
+        (self.base(x) * self.state[0].exp()) as f32
+    }
+
+    /// Learns that `x` took `measured` seconds, `dt` seconds after the previous frame.
+    /// Times that are not finite and positive, or a regressor that is not finite, are
+    /// ignored.
+    pub fn learn(&mut self, x: &[f64; N], measured: f32, dt: f32) {
+        if !(measured.is_finite() && measured > 0.0 && dt.is_finite() && dt > 0.0)
+            || x.iter().any(|v| !v.is_finite())
+        {
+            return;
+        }
+        let dt = f64::from(dt);
+        let noise = f64::from(self.gate.typical()) * core::f64::consts::FRAC_PI_2.sqrt();
+        self.drift(dt, noise * noise);
+        let costs = self.costs();
+        let base: f64 = costs.iter().zip(x).map(|(c, x)| c * x).sum();
+        if base <= 0.0 {
+            return;
+        }
+        let n = N + 1;
+        let error = f64::from(measured).ln() - self.state[0] - base.ln();
+        // ∂ ln(prediction) / ∂ state: 1 for the speed, each regressor's share for its cost.
+        let mut h = [0.0; MAX_STATE];
+        h[0] = 1.0;
+        for j in 0..N {
+            h[j + 1] = costs[j] * x[j] / base;
+        }
+        let bound = f64::from(HUBER_ERRORS * self.gate.typical());
+        let side = if error.abs() > bound {
+            error.signum() as i8
+        } else {
+            0
+        };
+        let mut variance = noise * noise;
+        if side != 0 && side != self.last_outlier {
+            // An isolated outlier: as if it were at the bound.
+            variance *= (error / bound).powi(2);
+        }
+        self.last_outlier = side;
+        // K = P h / (h' P h + r); x += K e; P -= K h' P.
+        let mut ph = [0.0; MAX_STATE];
+        for (i, v) in ph.iter_mut().enumerate().take(n) {
+            *v = (0..n).map(|k| self.covariance[i][k] * h[k]).sum();
+        }
+        let innovation: f64 = (0..n).map(|i| h[i] * ph[i]).sum::<f64>() + variance;
+        if !(innovation.is_finite() && innovation > 0.0) {
+            return;
+        }
+        for i in 0..n {
+            let gain = ph[i] / innovation;
+            self.state[i] += gain * error;
+            for k in 0..n {
+                self.covariance[i][k] -= gain * ph[k];
+            }
+        }
+        for i in 0..n {
+            for k in 0..i {
+                let mean = 0.5 * (self.covariance[i][k] + self.covariance[k][i]);
+                self.covariance[i][k] = mean;
+                self.covariance[k][i] = mean;
+            }
+            self.covariance[i][i] = self.covariance[i][i].max(1e-30);
+        }
+        let most = MAX_SPEED.ln();
+        self.state[0] = self.state[0].clamp(-most, most);
+        for j in 0..N {
+            let v = self.state[j + 1];
+            let lo = (self.lower[j] / self.prior[j]).ln();
+            let hi = (self.upper[j] / self.prior[j]).ln();
+            self.state[j + 1] = if v.is_finite() { v.clamp(lo, hi.max(lo)) } else { 0.0 };
+        }
+        self.gate.observe(error as f32, dt as f32);
+    }
+
+    /// The random walks over `dt` seconds, for measurements of variance `variance`.
+    fn drift(&mut self, dt: f64, variance: f64) {
+        // With its other parts known, a state whose walk is `r α² / (1 − α)` per frame
+        // follows a lasting change with the gain `α` an exponential average with time
+        // constant τ gives a frame `dt` long.
+        let walk = |seconds: f64| {
+            let alpha = (1.0 - (-dt / seconds).exp()).min(0.999);
+            variance * alpha * alpha / (1.0 - alpha)
+        };
+        self.covariance[0][0] += walk(self.speed_seconds);
+        let costs = walk(self.costs_seconds);
+        for j in 1..=N {
+            self.covariance[j][j] += costs;
+        }
+    }
+
+    /// Forgets everything learned.
+    pub fn reset(&mut self) {
+        *self = Self::new(
+            self.prior,
+            self.lower,
+            self.upper,
+            self.speed_seconds as f32,
+            self.costs_seconds as f32,
+        );
+    }
+}
+
+/// The most a [`CostFilter`]'s speed may differ from 1, as a ratio.
+const MAX_SPEED: f64 = 1000.0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bounds<const N: usize>() -> ([f64; N], [f64; N]) {
+        ([0.0; N], [1e9; N])
+    }
+
+    #[test]
+    fn the_regression_finds_two_costs_from_varied_frames() {
+        let (lo, hi) = bounds::<2>();
+        let mut r = PriorRegression::new([1.0, 1.0], lo, hi, 5.0);
+        for i in 0..200 {
+            let x = [1.0 + (i % 7) as f64, 3.0 - (i % 5) as f64 * 0.5];
+            r.update(&x, 2.0 * x[0] + 0.5 * x[1], 1.0, 0.05);
+        }
+        let t = r.parameters();
+        assert!((t[0] - 2.0).abs() < 0.05 && (t[1] - 0.5).abs() < 0.05, "{t:?}");
+    }
+
+    #[test]
+    fn a_regressor_that_is_never_excited_keeps_its_prior() {
+        let (lo, hi) = bounds::<3>();
+        let mut r = PriorRegression::new([1.0, 2.0, 3.0], lo, hi, 5.0);
+        for i in 0..300 {
+            let x = [1.0, (i % 9) as f64, 0.0];
+            r.update(&x, 0.5 + 4.0 * x[1], 1.0, 0.05);
+        }
+        let t = r.parameters();
+        assert_eq!(t[2], 3.0);
+        assert!((t[0] - 0.5).abs() < 0.05 && (t[1] - 4.0).abs() < 0.05, "{t:?}");
+    }
+
+    #[test]
+    fn collinear_regressors_stay_finite_and_near_the_prior_split() {
+        let (lo, hi) = bounds::<2>();
+        let mut r = PriorRegression::new([1.0, 1.0], lo, hi, 5.0);
+        for i in 0..300 {
+            let s = 1.0 + (i % 4) as f64;
+            r.update(&[s, s], 3.0 * s, 1.0, 0.05);
+        }
+        let t = r.parameters();
+        assert!(t.iter().all(|v| v.is_finite()));
+        // The sum is what the data say; the split is the prior's (equal).
+        assert!((t[0] + t[1] - 3.0).abs() < 0.05, "{t:?}");
+        assert!((t[0] - t[1]).abs() < 0.05, "{t:?}");
+    }
+
+    #[test]
+    fn bad_inputs_are_ignored() {
+        let (lo, hi) = bounds::<1>();
+        let mut r = PriorRegression::new([1.0], lo, hi, 5.0);
+        r.update(&[f64::NAN], 1.0, 1.0, 0.1);
+        r.update(&[1.0], f64::INFINITY, 1.0, 0.1);
+        r.update(&[1.0], 1.0, -1.0, 0.1);
+        assert_eq!(r.parameters(), [1.0]);
+    }
+
+    fn filter() -> CostFilter<2> {
+        CostFilter::new([0.01, 1.0], [0.0, 0.01], [1.0, 100.0], 0.25, 30.0)
+    }
+
+    #[test]
+    fn the_filter_follows_a_step_in_speed_and_ignores_one_hitch() {
+        let mut f = filter();
+        let truth = |x: &[f64; 2]| (0.02 * x[0] + 1.5 * x[1]) as f32;
+        let xs = [[1.0, 0.02], [1.0, 0.05], [1.0, 0.01]];
+        for i in 0..600 {
+            let x = xs[i % 3];
+            f.learn(&x, truth(&x), 0.05);
+        }
+        let x = [1.0, 0.03];
+        assert!((f.predict(&x) / truth(&x) - 1.0).abs() < 0.01, "{:?}", f.costs());
+        let before = f.predict(&x);
+        f.learn(&x, 10.0 * truth(&x), 0.05);
+        assert!((f.predict(&x) / before - 1.0).abs() < 0.02, "a hitch moved it");
+        let (speed, costs) = (f.speed(), f.costs());
+        for _ in 0..20 {
+            f.learn(&x, 1.4 * truth(&x), 0.05);
+        }
+        assert!((f.predict(&x) / (1.4 * truth(&x)) - 1.0).abs() < 0.03);
+        // The step went to the speed, not to the costs.
+        assert!((f.speed() / speed - 1.4).abs() < 0.05, "{} → {}", speed, f.speed());
+        for (a, b) in costs.iter().zip(f.costs()) {
+            assert!((b / a - 1.0).abs() < 0.03, "{costs:?} → {:?}", f.costs());
+        }
+    }
+
+    #[test]
+    fn the_filter_learns_a_factor_of_three_within_two_seconds() {
+        for truth in [3.0, 1.0 / 3.0] {
+            let mut f = filter();
+            let dt = 0.05;
+            let mut i = 0;
+            while f64::from(i) * dt < 2.0 {
+                let x = [1.0, 0.02 + 0.01 * f64::from(i % 3)];
+                f.learn(&x, (truth * (0.01 + x[1])) as f32, dt as f32);
+                i += 1;
+            }
+            let x = [1.0, 0.03];
+            let predicted = f.predict(&x);
+            let measured = (truth * 0.04) as f32;
+            assert!((predicted / measured - 1.0).abs() < 0.05, "×{truth}: {predicted} vs {measured}");
+        }
+    }
+
+    #[test]
+    fn the_filter_ignores_bad_inputs_and_keeps_an_unseen_cost() {
+        let mut f = filter();
+        f.learn(&[f64::NAN, 1.0], 0.1, 0.1);
+        f.learn(&[1.0, 1.0], f32::NAN, 0.1);
+        f.learn(&[1.0, 1.0], -1.0, 0.1);
+        f.learn(&[1.0, 1.0], 0.1, 0.0);
+        assert!((f.costs()[0] - 0.01).abs() < 1e-12 && (f.costs()[1] - 1.0).abs() < 1e-12);
+        assert_eq!(f.speed(), 1.0);
+        for _ in 0..200 {
+            f.learn(&[1.0, 0.0], 0.03, 0.05);
+        }
+        assert!(
+            (f.costs()[1] - 1.0).abs() < 1e-12,
+            "a regressor that stays 0 keeps its prior"
+        );
+        assert!((f.predict(&[1.0, 0.0]) - 0.03).abs() < 0.001);
+    }
+}

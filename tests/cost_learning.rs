@@ -1,0 +1,361 @@
+//! The cost model learning its machine in a headless app: a synthetic renderer with known
+//! costs (per family, fixed, logic, overlap), noise and changes of speed answers each
+//! frame's selection, and the real systems learn from what it "measured". No timing is
+//! asserted: every time is synthetic.
+
+mod common;
+
+use std::collections::VecDeque;
+
+use bevy::prelude::*;
+use bevy_sherwood::cost::{
+    Calibration, CalibrationChoice, CostModel, CostSettings, FramePrediction, FrameSample,
+    FrameSamples,
+};
+use bevy_sherwood::prelude::*;
+
+/// What the synthetic machine really costs.
+#[derive(Clone, Copy, Debug)]
+struct Truth {
+    /// The render world's fixed time, seconds.
+    fixed: f32,
+    /// Factors on the calibration: triangles, triangle pixels, lines, points.
+    scales: [f32; 4],
+    logic_fixed: f32,
+    logic_per_instance: f32,
+    /// Handing a frame to the render world, seconds.
+    sync: f32,
+    /// Everything (rendering and logic) takes this much longer.
+    speed: f32,
+}
+
+impl Truth {
+    fn render(&self, p: &FramePrediction) -> f32 {
+        let c = p.calibrated;
+        let [t, px, l, pt] = self.scales;
+        self.speed * (self.fixed + t * c.triangles + px * c.triangle_pixels + l * c.lines + pt * c.points)
+    }
+
+    fn logic(&self, p: &FramePrediction) -> f32 {
+        self.speed * (self.logic_fixed + self.logic_per_instance * p.visible_instances as f32)
+    }
+
+    fn sample(&self, p: &FramePrediction, noise: f32) -> FrameSample {
+        let render = self.render(p) * noise;
+        let logic = self.logic(p) * noise;
+        FrameSample {
+            frame: p.frame,
+            logic,
+            render,
+            interval: logic.max(render) + self.sync,
+            complete: true,
+        }
+    }
+}
+
+/// The default calibration's machine, a little different per family.
+const MACHINE: Truth = Truth {
+    fixed: 0.008,
+    scales: [1.6, 0.5, 2.2, 0.7],
+    logic_fixed: 0.003,
+    logic_per_instance: 2e-6,
+    sync: 0.001,
+    speed: 1.0,
+};
+
+/// A forest with a view, predicting with `calibration`.
+fn app(calibration: Calibration) -> (App, f32) {
+    let (mut app, size) = common::forest_of(300);
+    {
+        let world = app.world_mut();
+        world.resource_mut::<CostSettings>().calibration = CalibrationChoice::Keep;
+        world.resource_mut::<CostModel>().set_calibration(calibration);
+    }
+    common::look_from(
+        &mut app,
+        Vec3::new(-0.1 * size, 20.0, -0.1 * size),
+        Vec3::new(0.5 * size, 0.0, 0.5 * size),
+    );
+    common::until_visible(&mut app);
+    (app, size)
+}
+
+/// Drives `app` for `frames` frames against `truth(frame index)`: each frame's selection
+/// is "rendered" and its sample arrives two frames later, as with pipelined rendering.
+/// `pose(k)` moves the view and sets the target. Returns per frame the prediction and
+/// the sample.
+struct Driver {
+    pending: VecDeque<FrameSample>,
+    noise: Box<dyn FnMut() -> f32>,
+}
+
+impl Driver {
+    fn new(noise: f32) -> Self {
+        let mut uniform = common::unit_noise();
+        Self {
+            pending: VecDeque::new(),
+            noise: Box::new(move || 1.0 + noise * (2.0 * uniform() - 1.0)),
+        }
+    }
+
+    fn frame(&mut self, app: &mut App, truth: &Truth) -> (FramePrediction, FrameSample) {
+        app.update();
+        let frame = app.world().resource::<LodDiagnostics>().frame;
+        let prediction = *app
+            .world()
+            .resource::<CostModel>()
+            .prediction(frame)
+            .expect("every frame's prediction is kept until it is measured");
+        let sample = truth.sample(&prediction, (self.noise)());
+        self.pending.push_back(sample);
+        if self.pending.len() > 2 {
+            let arrived = self.pending.pop_front().unwrap();
+            app.world_mut().resource_mut::<FrameSamples>().push(arrived);
+        }
+        (prediction, sample)
+    }
+}
+
+/// Moves the view along the forest's diagonal and varies the target, so that the
+/// selection's mix of families changes from frame to frame.
+fn vary(app: &mut App, size: f32, k: u32) {
+    let t = (k % 240) as f32 / 240.0;
+    let eye = Vec3::new((-0.1 + 0.6 * t) * size, 20.0, (-0.1 + 0.3 * t) * size);
+    // Now and then a glance along the edge, with far fewer trees in view.
+    let at = if k % 5 == 4 {
+        Vec3::new(0.6 * size, 0.0, -0.5 * size)
+    } else {
+        Vec3::new(0.6 * size, 0.0, 0.7 * size)
+    };
+    common::look_from(app, eye, at);
+    let targets = [25.0, 60.0, 140.0, 40.0, 300.0, 90.0, 15.0];
+    app.world_mut().resource_mut::<FrameBudget>().target_ms = targets[(k % 7) as usize];
+}
+
+fn relative_error(predicted: f32, measured: f32) -> f32 {
+    (predicted - measured).abs() / measured
+}
+
+#[test]
+fn each_family_s_cost_is_learned_within_five_percent() {
+    let (mut app, size) = app(Calibration::default());
+    let mut driver = Driver::new(0.02);
+    // Each family's share of the true rendering time over the run.
+    let mut shares = [0.0f32; 5];
+    for k in 0..1200 {
+        vary(&mut app, size, k);
+        let (p, _) = driver.frame(&mut app, &MACHINE);
+        let c = p.calibrated;
+        let [t, px, l, pt] = MACHINE.scales;
+        let parts = [
+            MACHINE.fixed,
+            t * c.triangles,
+            px * c.triangle_pixels,
+            l * c.lines,
+            pt * c.points,
+        ];
+        let total: f32 = parts.iter().sum();
+        for (share, part) in shares.iter_mut().zip(parts) {
+            *share += part / total / 1200.0;
+        }
+    }
+    let learned = app.world().resource::<CostModel>().learned();
+    let got = [
+        learned.render_fixed_ms / 1000.0,
+        learned.scales.triangles,
+        learned.scales.triangle_pixels,
+        learned.scales.lines,
+        learned.scales.points,
+    ];
+    let truth = [
+        MACHINE.fixed,
+        MACHINE.scales[0],
+        MACHINE.scales[1],
+        MACHINE.scales[2],
+        MACHINE.scales[3],
+    ];
+    let names = ["fixed", "triangles", "triangle pixels", "lines", "points"];
+    // A part that is a few percent of every frame cannot be told from the noise: it
+    // only has to stay finite. The others are what the budget spends.
+    let mut checked = 0;
+    for j in 0..5 {
+        assert!(got[j].is_finite() && got[j] >= 0.0, "{learned:?}");
+        if shares[j] >= 0.05 {
+            checked += 1;
+            assert!(
+                (got[j] - truth[j]).abs() <= 0.05 * truth[j],
+                "{}: learned {} for {} (share {:.3}): {learned:?}",
+                names[j],
+                got[j],
+                truth[j],
+                shares[j]
+            );
+        }
+    }
+    assert!(checked >= 4, "the run excites too few families: {shares:?}");
+    let logic_fixed = learned.logic_fixed_ms / 1000.0;
+    assert!(
+        (logic_fixed - MACHINE.logic_fixed).abs() <= 0.05 * MACHINE.logic_fixed,
+        "logic {logic_fixed}: {learned:?}"
+    );
+    let per_instance = learned.logic_per_instance_us / 1e6;
+    assert!(
+        (per_instance - MACHINE.logic_per_instance).abs() <= 0.05 * MACHINE.logic_per_instance,
+        "logic per instance {per_instance}: {learned:?}"
+    );
+    assert!(
+        (learned.overlap.sync - MACHINE.sync).abs() <= 0.05 * MACHINE.sync,
+        "{learned:?}"
+    );
+}
+
+/// Frames until the prediction stays within `tolerance` of what is measured, and the
+/// largest error after that.
+fn settle(errors: &[(f32, f32)], tolerance: f32) -> (f32, f32) {
+    let last_bad = errors
+        .iter()
+        .rposition(|&(_, e)| e > tolerance)
+        .map_or(0, |i| i + 1);
+    let time = errors[..last_bad].iter().map(|e| e.0).sum();
+    let worst = errors[last_bad..].iter().map(|e| e.1).fold(0.0, f32::max);
+    (time, worst)
+}
+
+#[test]
+fn a_calibration_three_times_off_either_way_is_learned_within_two_seconds() {
+    for factor in [3.0, 1.0 / 3.0] {
+        let (mut app, size) = app(Calibration::default().scaled(factor));
+        let truth = Truth {
+            scales: [1.0; 4],
+            ..MACHINE
+        };
+        let mut driver = Driver::new(0.0);
+        let mut errors = Vec::new();
+        for k in 0..200 {
+            vary(&mut app, size, k);
+            let (p, s) = driver.frame(&mut app, &truth);
+            errors.push((s.interval, relative_error(p.frame_time, s.interval)));
+        }
+        let (time, worst) = settle(&errors, 0.05);
+        assert!(
+            time <= 2.0,
+            "×{factor}: the prediction settled within 5% only after {time} s"
+        );
+        assert!(worst <= 0.05, "×{factor}: {worst}");
+    }
+}
+
+#[test]
+fn a_step_in_speed_is_followed_within_a_second_without_overshoot() {
+    let (mut app, size) = app(Calibration::default());
+    let mut driver = Driver::new(0.0);
+    // Before the step: how far predictions stray as the mix of families changes.
+    let mut band = 0.0f32;
+    for k in 0..400 {
+        vary(&mut app, size, k);
+        let (p, s) = driver.frame(&mut app, &MACHINE);
+        if k >= 340 {
+            band = band.max((s.interval / p.frame_time - 1.0).abs());
+        }
+    }
+    assert!(band < 0.05, "not settled before the step: {band}");
+    // The machine slows down by ×1.4 (another process woke up), then speeds up again.
+    for speed in [1.4, 1.0] {
+        let truth = Truth { speed, ..MACHINE };
+        let mut ratios = Vec::new();
+        let mut errors = Vec::new();
+        for k in 0..60 {
+            vary(&mut app, size, 400 + k);
+            let (p, s) = driver.frame(&mut app, &truth);
+            ratios.push(s.interval / p.frame_time);
+            errors.push((s.interval, relative_error(p.frame_time, s.interval)));
+        }
+        let (time, worst) = settle(&errors, 0.05);
+        assert!(time <= 1.0, "×{speed}: settled within 5% after {time} s");
+        assert!(worst <= 0.05, "{worst}");
+        // No overshoot: measured / predicted approaches 1 from one side, beyond it by no
+        // more than the stray before the step.
+        let side = (ratios[0] - 1.0).signum();
+        assert!(
+            ratios.iter().all(|r| (r - 1.0) * side >= -band - 0.01),
+            "×{speed}: overshoot beyond {band}: {ratios:?}"
+        );
+    }
+}
+
+#[test]
+fn one_hitch_barely_moves_the_model() {
+    let (mut app, size) = app(Calibration::default());
+    let mut driver = Driver::new(0.0);
+    for k in 0..300 {
+        vary(&mut app, size, k);
+        driver.frame(&mut app, &MACHINE);
+    }
+    let mut hitch = MACHINE;
+    hitch.speed = 10.0;
+    vary(&mut app, size, 300);
+    driver.frame(&mut app, &hitch);
+    let mut worst = 0.0f32;
+    for k in 301..320 {
+        vary(&mut app, size, k);
+        let (p, s) = driver.frame(&mut app, &MACHINE);
+        worst = worst.max(relative_error(p.frame_time, s.interval));
+    }
+    assert!(worst < 0.03, "one 10× frame moved the predictions by {worst}");
+}
+
+#[test]
+fn a_family_never_drawn_keeps_its_prior_and_constant_counts_stay_finite() {
+    // Triangles only (TC), one view, one target: lines and points are never drawn and
+    // the counts do not vary.
+    let (mut app, _) = app(Calibration::default());
+    {
+        let mut budget = app.world_mut().resource_mut::<FrameBudget>();
+        budget.mode = LodMode::Tc;
+        budget.target_ms = 80.0;
+    }
+    let mut driver = Driver::new(0.0);
+    let mut last = (FramePrediction::default(), FrameSample::default());
+    for _ in 0..300 {
+        last = driver.frame(&mut app, &MACHINE);
+    }
+    let learned = app.world().resource::<CostModel>().learned();
+    let speed = learned.render_speed;
+    assert_eq!(learned.scales.lines / speed, 1.0, "{learned:?}");
+    assert_eq!(learned.scales.points / speed, 1.0, "{learned:?}");
+    for v in [
+        learned.scales.triangles,
+        learned.scales.triangle_pixels,
+        learned.render_fixed_ms,
+        learned.logic_fixed_ms,
+        learned.logic_per_instance_us,
+    ] {
+        assert!(v.is_finite() && v >= 0.0, "{learned:?}");
+    }
+    let (p, s) = last;
+    assert!(relative_error(p.frame_time, s.interval) < 0.02, "{p:?} {s:?}");
+}
+
+#[test]
+fn incomplete_and_absurd_frames_are_not_learned() {
+    let (mut app, size) = app(Calibration::default());
+    let before = app.world().resource::<CostModel>().learned();
+    for k in 0..20 {
+        vary(&mut app, size, k);
+        app.update();
+        let frame = app.world().resource::<LodDiagnostics>().frame;
+        let p = *app.world().resource::<CostModel>().prediction(frame).unwrap();
+        let mut sample = MACHINE.sample(&p, 1.0);
+        match k % 4 {
+            0 => sample.complete = false,
+            1 => sample.render = f32::NAN,
+            2 => sample.interval = -1.0,
+            _ => sample.logic = 0.0,
+        }
+        app.world_mut().resource_mut::<FrameSamples>().push(sample);
+    }
+    app.update();
+    let after = app.world().resource::<CostModel>().learned();
+    assert_eq!(after.frames_learned, 0);
+    assert_eq!(before.scales, after.scales);
+}
