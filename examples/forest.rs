@@ -237,8 +237,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
     if o.out.is_some() && !o.calibrate {
         return Err("--out needs --calibrate".into());
     }
-    if o
-        .scale_calibration
+    if o.scale_calibration
         .is_some_and(|f| !(f.is_finite() && f > 0.0))
     {
         return Err("--scale-calibration must be a positive number".into());
@@ -724,7 +723,9 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("measured_logic_ms", |r| ms(r.sample.logic * 1000.0)),
     ("render_budget_ms", |r| ms(r.diagnostics.render_budget_ms)),
     ("render_fixed_ms", |r| ms(r.diagnostics.render_fixed_ms)),
-    ("predicted_render_ms", |r| ms(r.diagnostics.predicted_render_ms)),
+    ("predicted_render_ms", |r| {
+        ms(r.diagnostics.predicted_render_ms)
+    }),
     ("measured_render_ms", |r| ms(r.sample.render * 1000.0)),
     ("predicted_ms", |r| ms(r.diagnostics.predicted_frame_ms)),
     ("measured_ms", |r| ms(r.sample.interval * 1000.0)),
@@ -735,16 +736,28 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("undrawn", |r| r.diagnostics.undrawn.to_string()),
     ("wasted_ms", |r| ms(r.diagnostics.wasted_ms)),
     ("overrun_ms", |r| ms(r.diagnostics.overrun_ms)),
-    ("pass_ms", |r| r.pass_ms.map_or(String::new(), |t| ms(t as f32))),
-    ("render_speed", |r| ratio(r.diagnostics.learned.render_speed)),
+    ("pass_ms", |r| {
+        r.pass_ms.map_or(String::new(), |t| ms(t as f32))
+    }),
+    ("render_speed", |r| {
+        ratio(r.diagnostics.learned.render_speed)
+    }),
     ("logic_speed", |r| ratio(r.diagnostics.learned.logic_speed)),
     ("triangle_us", |r| ratio(r.diagnostics.learned.triangle_us)),
-    ("triangle_pixel_ns", |r| ratio(r.diagnostics.learned.triangle_pixel_ns)),
+    ("triangle_pixel_ns", |r| {
+        ratio(r.diagnostics.learned.triangle_pixel_ns)
+    }),
     ("line_us", |r| ratio(r.diagnostics.learned.line_us)),
     ("point_us", |r| ratio(r.diagnostics.learned.point_us)),
-    ("logic_fixed_ms", |r| ms(r.diagnostics.learned.logic_fixed_ms)),
-    ("logic_per_instance_us", |r| ratio(r.diagnostics.learned.logic_per_instance_us)),
-    ("sync_ms", |r| ms(r.diagnostics.learned.overlap.sync * 1000.0)),
+    ("logic_fixed_ms", |r| {
+        ms(r.diagnostics.learned.logic_fixed_ms)
+    }),
+    ("logic_per_instance_us", |r| {
+        ratio(r.diagnostics.learned.logic_per_instance_us)
+    }),
+    ("sync_ms", |r| {
+        ms(r.diagnostics.learned.overlap.sync * 1000.0)
+    }),
     ("serial", |r| ratio(r.diagnostics.learned.overlap.serial)),
 ];
 
@@ -768,7 +781,10 @@ fn write_csv(file: &str, rows: &[Row]) -> std::io::Result<()> {
 }
 
 fn summary(target_ms: f32, rows: &[Row]) -> String {
-    let times: Vec<f64> = rows.iter().map(|r| f64::from(r.sample.interval * 1000.0)).collect();
+    let times: Vec<f64> = rows
+        .iter()
+        .map(|r| f64::from(r.sample.interval * 1000.0))
+        .collect();
     let s = FrameStats::of(&times, f64::from(target_ms));
     format!(
         "summary frames={} target_ms={target_ms} mean_ms={:.3} std_ms={:.3} avg_err={:.4} p95_ms={:.3} p99_ms={:.3} over_pct={:.2}",

@@ -110,7 +110,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     /// Robin Hood draws every object, and what it selects costs no more than the rendering
-    /// time except for truncated objects' cheapest representations, which it reports.
+    /// time except by the floors' excess over it, which it reports.
     #[test]
     fn robin_hood_never_drops_and_stays_within_time(inst in instance(1..=40, ladder(8))) {
         let p = inst.problem();
@@ -118,13 +118,19 @@ proptest! {
         let stats = RobinHood::new().distribute(&p, inst.budget, &mut out);
         prop_assert_eq!(stats.dropped, 0);
         prop_assert!(out.iter().all(Allocation::is_drawn));
-        let truncated_cheapest: f64 = out
-            .iter()
-            .enumerate()
-            .filter(|(_, a)| a.truncated)
-            .map(|(i, _)| f64::from(p.ladder(i).last().unwrap().cost))
+        // The floors, recomputed from the ladders rather than taken from the stats.
+        let floors: f64 = (0..p.len())
+            .map(|i| f64::from(p.ladder(i).last().unwrap().cost))
             .sum();
-        prop_assert!(f64::from(stats.used) <= f64::from(inst.budget) + truncated_cheapest + 1e-3);
+        prop_assert!((f64::from(stats.floor) - floors).abs() <= 1e-4 * floors.max(1.0));
+        let excess = (floors - f64::from(inst.budget)).max(0.0);
+        prop_assert!((f64::from(stats.floor_excess) - excess).abs() <= 1e-4 * floors.max(1.0));
+        let used: f64 = (0..p.len())
+            .map(|i| f64::from(p.ladder(i)[out[i].level.unwrap() as usize].cost))
+            .sum();
+        prop_assert!(used <= f64::from(inst.budget) + excess + 1e-3);
+        // With the floors paid first nothing is truncated: every object gets its cheapest.
+        prop_assert_eq!(stats.truncated, 0);
         // Not truncated means within its own allotment.
         for a in &out {
             prop_assert!(a.truncated || a.used <= a.given * (1.0 + 1e-6));
@@ -132,14 +138,20 @@ proptest! {
         prop_assert_eq!(stats.truncated as usize, out.iter().filter(|a| a.truncated).count());
     }
 
-    /// Every object with a positive value gets positive time whenever there is time.
+    /// Every object gets at least its floor, and every object with a positive value
+    /// more than its floor whenever there is time beyond the floors.
     #[test]
     fn robin_hood_gives_every_valued_object_time(inst in instance(1..=200, ladder(8))) {
-        prop_assume!(inst.budget > 1e-3);
+        let p = inst.problem();
+        let floor = |i: usize| p.ladder(i).last().unwrap().cost;
+        let floors: f32 = (0..p.len()).map(floor).sum();
         let mut out = Vec::new();
-        RobinHood::new().distribute(&inst.problem(), inst.budget, &mut out);
-        for (a, o) in out.iter().zip(&inst.objects) {
-            prop_assert!(o.0 <= 0.0 || a.given > 0.0);
+        RobinHood::new().distribute(&p, inst.budget, &mut out);
+        for (i, (a, o)) in out.iter().zip(&inst.objects).enumerate() {
+            prop_assert!(a.given >= floor(i) * (1.0 - 1e-6));
+            if inst.budget > floors + 1e-3 {
+                prop_assert!(o.0 <= 0.0 || a.given > floor(i));
+            }
         }
     }
 

@@ -33,7 +33,8 @@ impl Truth {
     fn render(&self, p: &FramePrediction) -> f32 {
         let c = p.calibrated;
         let [t, px, l, pt] = self.scales;
-        self.speed * (self.fixed + t * c.triangles + px * c.triangle_pixels + l * c.lines + pt * c.points)
+        self.speed
+            * (self.fixed + t * c.triangles + px * c.triangle_pixels + l * c.lines + pt * c.points)
     }
 
     fn logic(&self, p: &FramePrediction) -> f32 {
@@ -69,7 +70,9 @@ fn app(calibration: Calibration) -> (App, f32) {
     {
         let world = app.world_mut();
         world.resource_mut::<CostSettings>().calibration = CalibrationChoice::Keep;
-        world.resource_mut::<CostModel>().set_calibration(calibration);
+        world
+            .resource_mut::<CostModel>()
+            .set_calibration(calibration);
     }
     common::look_from(
         &mut app,
@@ -301,7 +304,10 @@ fn one_hitch_barely_moves_the_model() {
         let (p, s) = driver.frame(&mut app, &MACHINE);
         worst = worst.max(relative_error(p.frame_time, s.interval));
     }
-    assert!(worst < 0.03, "one 10× frame moved the predictions by {worst}");
+    assert!(
+        worst < 0.03,
+        "one 10× frame moved the predictions by {worst}"
+    );
 }
 
 #[test]
@@ -333,7 +339,10 @@ fn a_family_never_drawn_keeps_its_prior_and_constant_counts_stay_finite() {
         assert!(v.is_finite() && v >= 0.0, "{learned:?}");
     }
     let (p, s) = last;
-    assert!(relative_error(p.frame_time, s.interval) < 0.02, "{p:?} {s:?}");
+    assert!(
+        relative_error(p.frame_time, s.interval) < 0.02,
+        "{p:?} {s:?}"
+    );
 }
 
 #[test]
@@ -344,7 +353,11 @@ fn incomplete_and_absurd_frames_are_not_learned() {
         vary(&mut app, size, k);
         app.update();
         let frame = app.world().resource::<LodDiagnostics>().frame;
-        let p = *app.world().resource::<CostModel>().prediction(frame).unwrap();
+        let p = *app
+            .world()
+            .resource::<CostModel>()
+            .prediction(frame)
+            .unwrap();
         let mut sample = MACHINE.sample(&p, 1.0);
         match k % 4 {
             0 => sample.complete = false,

@@ -4,9 +4,9 @@
 mod common;
 
 use bevy::prelude::*;
+use bevy_sherwood::cost::{CostModel, CostSettings};
 use bevy_sherwood::culling::FrustumPlanes;
 use bevy_sherwood::draw::TreeDrawList;
-use bevy_sherwood::cost::{CostModel, CostSettings};
 use bevy_sherwood::lod::StrategyKind;
 use bevy_sherwood::prelude::*;
 
@@ -110,7 +110,14 @@ fn with_no_time_every_visible_object_is_still_drawn() {
         let d = frame(&mut app, with(mode, 0.0));
         assert_eq!(d.render_budget_ms, 0.0);
         assert_eq!(d.undrawn, 0);
-        assert_eq!(d.truncated, d.visible_objects, "{mode:?}: {d:?}");
+        // Every object at its cheapest: the floors, all beyond the (zero) rendering time.
+        let selection = d.predicted_render_ms - d.render_fixed_ms;
+        assert!(d.floor_ms > 0.0, "{mode:?}: {d:?}");
+        assert!(
+            (selection - d.floor_ms).abs() <= 1e-3 * d.floor_ms,
+            "{mode:?}: {d:?}"
+        );
+        assert_eq!(d.floor_excess_ms, d.floor_ms, "{mode:?}: {d:?}");
         let (seen, unseen) = lists(&mut app);
         assert!(!seen.is_empty());
         assert!(
@@ -133,7 +140,8 @@ fn the_prediction_stays_within_the_rendering_time() {
             assert!(d.predicted_render_ms.is_finite() && d.predicted_frame_ms.is_finite());
             if d.truncated == 0 {
                 assert!(
-                    d.predicted_render_ms <= (d.render_fixed_ms + d.render_budget_ms) * 1.0001 + 1e-6,
+                    d.predicted_render_ms
+                        <= (d.render_fixed_ms + d.render_budget_ms) * 1.0001 + 1e-6,
                     "{mode:?} at {target} ms: {d:?}"
                 );
             } else {
@@ -218,7 +226,8 @@ fn ladder_strategies_may_drop_objects_and_say_so() {
                 assert!(d.overrun_ms == 0.0 || d.undrawn == 0);
             } else {
                 assert!(
-                    d.predicted_render_ms <= (d.render_fixed_ms + d.render_budget_ms) * 1.0001 + 1e-6,
+                    d.predicted_render_ms
+                        <= (d.render_fixed_ms + d.render_budget_ms) * 1.0001 + 1e-6,
                     "{strategy:?} at {target} ms overspends: {d:?}"
                 );
             }
@@ -312,4 +321,54 @@ fn the_budget_chooses_the_calibration_file_and_a_bad_one_falls_back() {
     app.update();
     assert_eq!(*app.world().resource::<CostModel>().calibration(), measured);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Thesis §6.5 and the floors: the selection's predicted cost stays within the rendering
+/// time except by the reported excess of the floors, grows with the target, and reaches
+/// full detail once the target pays for it.
+#[test]
+fn the_selection_spends_its_time_up_to_full_detail() {
+    let mut app = app();
+    // A still forest: the same visible objects at every target.
+    app.world_mut()
+        .resource_mut::<bevy_sherwood::wind::WindSettings>()
+        .enabled = false;
+    app.update();
+    let unlimited = frame(&mut app, with(LodMode::Unlimited, 100.0));
+    for mode in [LodMode::Tclod, LodMode::Tc] {
+        let mut previous = 0.0;
+        let mut full_at = None;
+        let mut target = 0.5;
+        while target < 200_000.0 {
+            let d = frame(&mut app, with(mode, target));
+            let selection = d.predicted_render_ms - d.render_fixed_ms;
+            assert!(
+                selection <= d.render_budget_ms * 1.0001 + d.floor_excess_ms + 1e-4,
+                "{mode:?} at {target} ms: {d:?}"
+            );
+            assert!(
+                selection >= previous * 0.9999,
+                "{mode:?} at {target} ms: {selection} ms after {previous} ms"
+            );
+            assert_eq!(d.undrawn, 0);
+            previous = selection;
+            if full_at.is_none() && d.counts == unlimited.counts {
+                full_at = Some(target);
+            }
+            target *= 1.5;
+        }
+        let full_at = full_at.unwrap_or_else(|| panic!("{mode:?} never reaches full detail"));
+        // Full detail as soon as the target covers it (the sweep's next step).
+        assert!(
+            full_at <= 1.5 * unlimited.predicted_frame_ms,
+            "{mode:?}: full detail only at {full_at} ms, unlimited predicts {} ms",
+            unlimited.predicted_frame_ms
+        );
+    }
+    // With a target below what the floors cost, the excess is reported.
+    let d = frame(&mut app, with(LodMode::Tclod, 0.5));
+    assert!(
+        d.floor_excess_ms > 0.0 && d.floor_ms > d.render_budget_ms,
+        "{d:?}"
+    );
 }

@@ -66,10 +66,13 @@ fn a_trunk_never_costs_more_than_its_time_unless_truncated_and_grows_with_it() {
                 }
             }
         }
-        // With a second to spare, every segment the static LOD does not drop as
-        // sub-pixel is triangles.
+        // With a second to spare, full detail: every segment as triangles, the sub-pixel
+        // twigs the static LOD drops included (thesis §6.5).
         let mut list = TreeDrawList::default();
         trunk_tclod(&model, &v, &costs, PixelRange::default(), 1.0, &mut list);
+        assert_eq!(list.trunk_triangles, 0..total, "depth {depth}");
+        // Just short of that, every segment the static LOD does not drop is triangles.
+        let full = trunk_tc(&model, &v, &costs, f32::INFINITY, &mut list).cost;
         let dropped = bevy_sherwood::tree::trunk_lod(
             &model,
             1.0,
@@ -80,7 +83,18 @@ fn a_trunk_never_costs_more_than_its_time_unless_truncated_and_grows_with_it() {
         .dropped
         .end;
         let first = model.segments.triangle_offsets[dropped as usize];
-        assert_eq!(list.trunk_triangles, first..total, "depth {depth}");
+        let enough = costs.triangles(total - first, trunk_triangle_area(&model, &v));
+        if enough < full {
+            trunk_tclod(
+                &model,
+                &v,
+                &costs,
+                PixelRange::default(),
+                enough.max(0.999 * full),
+                &mut list,
+            );
+            assert!(list.trunk_triangles.start <= first, "depth {depth}");
+        }
         assert!(list.trunk_lines.is_empty());
     }
 }
@@ -152,18 +166,30 @@ fn leaves_fit_their_time_and_use_it_as_it_grows() {
             }
         }
     }
-    // Points are the far leaves of a group, never its near ones, when the group is small.
+    // Points are the far leaves of a group, never its near ones, when the group is small
+    // (and the time short of full detail).
     let mut list = TreeDrawList::default();
     let g = groups(&model, 300.0);
+    let full = leaves(
+        &model,
+        &view(300.0),
+        &costs,
+        LeafMethod::Full,
+        &g,
+        0.0,
+        &mut list,
+    )
+    .cost;
     leaves(
         &model,
         &view(300.0),
         &costs,
         LeafMethod::Tclod(PixelRange::default()),
         &g,
-        1.0,
+        0.5 * full,
         &mut list,
     );
+    assert!(!list.leaf_points.is_empty());
     for run in &list.leaf_points {
         let group = &model.leaf_groups[model.leaves[run.leaves.start as usize].group as usize];
         assert_eq!(run.leaves.end, group.leaves.end);
@@ -188,14 +214,16 @@ fn a_trunk_too_far_to_see_is_still_one_thin_line() {
     assert_eq!(list.trunk_lines.len(), 1);
     assert_eq!(list.trunk_lines[0].width, 1);
     assert_eq!(list.trunk_lines[0].segments.len(), 1);
-    // With time for it, the thickest segment's triangles instead of its line.
+    // With time for it but short of the whole trunk, the thickest segment's triangles
+    // instead of its line.
     let n = model.segments.len() as u32;
+    let full = trunk_tc(&model, &view(50_000.0), &costs, f32::INFINITY, &mut list).cost;
     let generous = trunk_tclod(
         &model,
         &view(50_000.0),
         &costs,
         PixelRange::default(),
-        1.0,
+        0.5 * full,
         &mut list,
     );
     assert!(list.trunk_lines.is_empty());
@@ -208,12 +236,13 @@ fn a_trunk_too_far_to_see_is_still_one_thin_line() {
     let offsets = &mut joined.segments.triangle_offsets;
     offsets[n as usize - 1] = offsets[n as usize];
     assert!(joined.validate().is_ok());
+    let full = trunk_tc(&joined, &view(50_000.0), &costs, f32::INFINITY, &mut list).cost;
     trunk_tclod(
         &joined,
         &view(50_000.0),
         &costs,
         PixelRange::default(),
-        1.0,
+        0.5 * full,
         &mut list,
     );
     assert_eq!(list.trunk_lines.len(), 1, "{list:?}");
@@ -370,4 +399,122 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
     }
     assert!(single_size_checks > 3, "{single_size_checks}");
     assert!(far_points_checks > 0, "{far_points_checks}");
+}
+
+/// A floor is what the budget pays an object before the hand-out: given it, the object
+/// draws within it (never truncated), with nothing it draws no more than it, and the
+/// floor is that cheapest drawing, or near it (a group's cheapest may be its few leaves
+/// as triangles rather than the far point the floor prices).
+fn assert_floor(case: &str, floor: f32, mut search: impl FnMut(f32) -> Selected) {
+    assert!(floor.is_finite() && floor >= 0.0, "{case}: floor {floor}");
+    let none = search(0.0);
+    let at = search(floor);
+    assert!(
+        none.cost <= floor * 1.00001,
+        "{case}: {} with no time, floor {floor}",
+        none.cost
+    );
+    assert!(
+        !at.truncated && at.cost <= floor * 1.00001,
+        "{case}: {at:?} at floor {floor}"
+    );
+    assert!(
+        floor <= 1.25 * none.cost,
+        "{case}: floor {floor} for a cheapest of {}",
+        none.cost
+    );
+}
+
+/// Every shipped species, seen at many depths and scales.
+fn sightings() -> Vec<(String, TreeModel, TreeView, f32)> {
+    let mut out = Vec::new();
+    for name in ["slender", "broad", "grand", "dense"] {
+        let model = common::species(name);
+        for depth in [1.5, 6.0, 25.0, 100.0, 400.0, 3000.0] {
+            for scale in [0.5, 1.0, 2.5] {
+                let v = TreeView {
+                    scale,
+                    trunk_depth: depth,
+                    projection: Projection::perspective(0.8, 540.0),
+                };
+                out.push((
+                    format!("{name} at {depth} ×{scale}"),
+                    model.clone(),
+                    v,
+                    depth,
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// Thesis §6.5: the time-critical search runs only when an object's time is below its
+/// full cost. At its full cost an object draws full detail; a little less draws the best
+/// that fits; nothing draws its floor, which the floor functions give without a search.
+#[test]
+fn full_detail_whenever_the_time_pays_for_it_and_the_floor_with_none() {
+    let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0)
+        .within_viewport(960.0 * 540.0);
+    let widths = PixelRange::default();
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * a.abs().max(b.abs()).max(1e-12);
+    for (case, model, v, depth) in sightings() {
+        let total = model.trunk_triangle_count() as u32;
+        let mut list = TreeDrawList::default();
+        // Full detail, as the unlimited mode draws it.
+        let trunk_full = trunk_tc(&model, &v, &costs, f32::INFINITY, &mut list).cost;
+        for tclod in [false, true] {
+            let search = |time: f32, list: &mut TreeDrawList| {
+                if tclod {
+                    trunk_tclod(&model, &v, &costs, widths, time, list)
+                } else {
+                    trunk_tc(&model, &v, &costs, time, list)
+                }
+            };
+            let at = search(trunk_full, &mut list);
+            assert_eq!(list.trunk_triangles, 0..total, "{case} tclod {tclod}");
+            assert!(list.trunk_lines.is_empty(), "{case}");
+            assert!(close(at.cost, trunk_full), "{case}");
+            let below = search(0.95 * trunk_full, &mut list);
+            assert!(
+                below.cost <= 0.95 * trunk_full * 1.00001 || below.truncated,
+                "{case}"
+            );
+            let floor = trunk_floor(&model, &v, &costs, tclod.then_some(widths));
+            assert_floor(&case, floor, |time| search(time, &mut list));
+        }
+        let g = groups(&model, depth);
+        for method in [LeafMethod::Tc, LeafMethod::Tclod(PixelRange::default())] {
+            for at_depth in [false, true] {
+                let search = |method: LeafMethod, time: f32, list: &mut TreeDrawList| {
+                    if at_depth {
+                        leaves_at_depth(&model, &v, &costs, method, depth, time, list)
+                    } else {
+                        leaves(&model, &v, &costs, method, &g, time, list)
+                    }
+                };
+                let case = format!("{case} {method:?} at depth {at_depth}");
+                let full = search(LeafMethod::Full, 0.0, &mut list).cost;
+                let at = search(method, full, &mut list);
+                assert_eq!(
+                    drawn(&model, &list),
+                    (model.leaves.len() as u32, 0, true),
+                    "{case}"
+                );
+                assert!(close(at.cost, full), "{case}");
+                let below = search(method, 0.95 * full, &mut list);
+                assert!(
+                    below.cost <= 0.95 * full * 1.00001 || below.truncated,
+                    "{case}"
+                );
+                assert!(drawn(&model, &list).2, "{case}");
+                let floor = if at_depth {
+                    leaves_at_depth_floor(&model, &v, &costs, method, depth)
+                } else {
+                    leaves_floor(&model, &v, &costs, method, &g)
+                };
+                assert_floor(&case, floor, |time| search(method, time, &mut list));
+            }
+        }
+    }
 }

@@ -374,6 +374,12 @@ pub struct BudgetStats {
     pub dropped: u32,
     /// Objects drawn time-critically (see [`Allocation::truncated`]).
     pub truncated: u32,
+    /// The objects' cheapest representations together, when the strategy pays them
+    /// before handing out the rest (Robin Hood); 0 otherwise.
+    pub floor: f32,
+    /// How far the cheapest representations alone exceed the rendering time
+    /// (`floor − rendering_time`, if positive): the overrun no choice could avoid.
+    pub floor_excess: f32,
 }
 
 impl BudgetStats {

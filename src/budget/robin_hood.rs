@@ -5,6 +5,22 @@
 //! object cannot use goes back into the pot for the objects after it. No visible object
 //! is ever dropped: one whose cheapest representation does not fit its share is drawn
 //! time-critically (truncated).
+//!
+//! **The floors are paid first** (a deviation from the paper, which hands out the whole
+//! rendering time by value): since every visible object draws at least its cheapest
+//! representation, those costs are taken off the rendering time before the hand-out, and
+//! each object receives its floor plus its share of the rest. Without it, objects of low
+//! value are given less than their cheapest representation, draw it anyway, and the
+//! frame overruns by the sum of those differences. When even the floors do not fit, every
+//! object gets its floor and the excess is reported ([`BudgetStats::floor_excess`]).
+//!
+//! **The remainder is handed out again** (the paper suggests spending it on quality): an
+//! object visited early may be given less than its full detail while the objects after it
+//! cannot use all of theirs, and what they leave comes back at the end with nobody left
+//! to take it. When that residue is more than [`RESIDUE_FRACTION`] of the rendering time,
+//! it is shared again by value among the objects still below their best representation
+//! (level 0), simple → complex, each searching again with what it used plus its share;
+//! up to [`RESIDUE_PASSES`] times.
 
 use super::problem::{Allocation, BudgetProblem, BudgetStats, BudgetStrategy, sanitize_time};
 
@@ -120,11 +136,18 @@ pub fn fit_continuous(full: f32, minimum: f32, time: f32) -> Fit {
     }
 }
 
+/// Residue worth another pass, as a fraction of the rendering time.
+pub const RESIDUE_FRACTION: f64 = 0.01;
+
+/// At most this many passes over the residue after the hand-out.
+pub const RESIDUE_PASSES: u32 = 3;
+
 /// The Robin Hood strategy. Keeps scratch buffers between frames, so reuse one value.
 #[derive(Clone, Debug, Default)]
 pub struct RobinHood {
     order: Vec<u32>,
     suffix_values: Vec<f64>,
+    floors: Vec<f32>,
 }
 
 impl RobinHood {
@@ -133,21 +156,25 @@ impl RobinHood {
         Self::default()
     }
 
-    /// The general form: `values[i]` and `complexities[i]` describe object `i`, and
-    /// `fit(i, time)` says what object `i` does with `time` seconds — a ladder search
-    /// ([`fit_ladder`]), a continuous form ([`fit_continuous`]) or anything else.
+    /// The general form: `values[i]`, `complexities[i]` and `floors[i]` describe object
+    /// `i`, and `fit(i, time)` says what object `i` does with `time` seconds — a ladder
+    /// search ([`fit_ladder`]), a continuous form ([`fit_continuous`]) or anything else.
+    /// `floors[i]` is the cost of object `i`'s cheapest representation (what `fit(i, 0)`
+    /// uses): paid before the hand-out (see the [module docs](self)).
     ///
     /// Objects are visited in ascending complexity (ties keep input order). If the
     /// complexities are already sorted — objects grouped by pre-sorted type — this costs
     /// O(n); otherwise an O(n log n) sort runs on a scratch index buffer.
     ///
-    /// NaN, negative or infinite values count as 0 (such objects get no time and are
-    /// drawn truncated). Objects beyond the end of a shorter `complexities` slice count
-    /// as complexity 0 (visited first).
+    /// NaN, negative or infinite values count as 0 (such objects get no time beyond their
+    /// floor). Objects beyond the end of a shorter `complexities` or `floors` slice count
+    /// as complexity 0 (visited first) and floor 0; NaN, negative or infinite floors
+    /// count as 0.
     pub fn distribute_with<F>(
         &mut self,
         values: &[f32],
         complexities: &[f32],
+        floors: &[f32],
         rendering_time: f32,
         mut fit: F,
         allocations: &mut Vec<Allocation>,
@@ -176,7 +203,9 @@ impl RobinHood {
             self.suffix_values[k] = self.suffix_values[k + 1] + clean(values[i]);
         }
 
-        let mut remaining = f64::from(rendering_time);
+        let floor_of = |i: usize| clean(floors.get(i).copied().unwrap_or(0.0));
+        let total_floor: f64 = (0..n).map(floor_of).sum();
+        let mut remaining = (f64::from(rendering_time) - total_floor).max(0.0);
         for k in 0..n {
             let i = self.visit(k);
             let value = clean(values[i]);
@@ -186,9 +215,9 @@ impl RobinHood {
             } else {
                 0.0
             };
-            let given = remaining * share; // P-2
-            remaining -= given; // P-3
-            let given = given.min(f64::from(f32::MAX)) as f32;
+            let portion = remaining * share; // P-2
+            remaining -= portion; // P-3
+            let given = (floor_of(i) + portion).min(f64::from(f32::MAX)) as f32;
             let chosen = fit(i, given);
             let used = if chosen.used.is_finite() {
                 chosen.used.max(0.0)
@@ -204,7 +233,58 @@ impl RobinHood {
                 truncated: chosen.truncated,
             };
         }
-        BudgetStats::from_allocations(rendering_time, allocations)
+        // The residue, again, to the objects still below their best.
+        for _ in 0..RESIDUE_PASSES {
+            if remaining <= RESIDUE_FRACTION * f64::from(rendering_time) {
+                break;
+            }
+            let hungry = |a: &Allocation| a.level.is_some_and(|l| l > 0);
+            let mut value_left: f64 = (0..n)
+                .filter(|&i| hungry(&allocations[i]))
+                .map(|i| clean(values[i]))
+                .sum();
+            if value_left <= 0.0 {
+                break;
+            }
+            for k in 0..n {
+                let i = self.visit(k);
+                let before = allocations[i];
+                if !hungry(&before) {
+                    continue;
+                }
+                let value = clean(values[i]);
+                let share = if value_left > 0.0 {
+                    (value / value_left).min(1.0)
+                } else {
+                    0.0
+                };
+                value_left -= value;
+                let portion = remaining * share;
+                if portion <= 0.0 {
+                    continue;
+                }
+                remaining -= portion;
+                let given = (f64::from(before.used) + portion).min(f64::from(f32::MAX)) as f32;
+                let chosen = fit(i, given);
+                let used = if chosen.used.is_finite() {
+                    chosen.used.max(0.0)
+                } else {
+                    given
+                };
+                remaining += f64::from((given - used).max(0.0));
+                allocations[i] = Allocation {
+                    given,
+                    used,
+                    level: Some(chosen.level),
+                    truncated: chosen.truncated && before.truncated,
+                };
+            }
+        }
+        let mut stats = BudgetStats::from_allocations(rendering_time, allocations);
+        stats.floor = total_floor.min(f64::from(f32::MAX)) as f32;
+        stats.floor_excess =
+            (total_floor - f64::from(rendering_time)).clamp(0.0, f64::from(f32::MAX)) as f32;
+        stats
     }
 
     fn visit(&self, k: usize) -> usize {
@@ -239,13 +319,20 @@ impl BudgetStrategy for RobinHood {
         rendering_time: f32,
         allocations: &mut Vec<Allocation>,
     ) -> BudgetStats {
-        self.distribute_with(
+        // Each object's floor: the cheapest rung of its ladder.
+        let mut floors = core::mem::take(&mut self.floors);
+        floors.clear();
+        floors.extend((0..problem.len()).map(|i| problem.ladder(i).last().map_or(0.0, |l| l.cost)));
+        let stats = self.distribute_with(
             problem.values(),
             problem.complexities(),
+            &floors,
             rendering_time,
             |i, time| fit_ladder(problem.ladder(i), time),
             allocations,
-        )
+        );
+        self.floors = floors;
+        stats
     }
 }
 
@@ -294,6 +381,7 @@ mod tests {
         let stats = RobinHood::new().distribute_with(
             &values,
             &[0.0; 3],
+            &[],
             8.0,
             |_, t| fit_continuous(100.0, 0.0, t),
             &mut out,
@@ -313,8 +401,10 @@ mod tests {
         let p = problem(&[(9.0, 1.0, &[1.0, 0.5]), (1.0, 9.0, &[9.0, 5.0, 2.0])]);
         let mut out = Vec::new();
         let stats = RobinHood::new().distribute(&p, 10.0, &mut out);
-        // Simple gets 9, uses 1; complex gets 1 + 8 = 9 and draws its best level.
-        assert_relative_eq!(out[0].given, 9.0);
+        // Floors 0.5 + 2 paid first, 7.5 handed out. Simple gets 0.5 + 9/10 · 7.5 = 7.25,
+        // uses 1; complex gets 2 + 0.75 + 6.25 = 9 and draws its best level.
+        assert_relative_eq!(stats.floor, 2.5);
+        assert_relative_eq!(out[0].given, 7.25);
         assert_eq!(out[0].level, Some(0));
         assert_relative_eq!(out[1].given, 9.0);
         assert_eq!(out[1].level, Some(0));
@@ -333,9 +423,11 @@ mod tests {
         ]);
         let mut out = Vec::new();
         let stats = RobinHood::new().distribute(&p, 10.0, &mut out);
-        assert_relative_eq!(out[0].given, 1.0);
-        assert_relative_eq!(out[1].given, 1.0);
-        assert_relative_eq!(out[2].given, 8.0);
+        // Floors 0.5 + 0.5 + 2, then 7 by value: 0.5 + 0.7 (uses 1, leaves 0.2), 0.5 +
+        // (6.3 + 0.2) / 9, and the rest, 8.
+        assert_relative_eq!(out[0].given, 1.2);
+        assert_relative_eq!(out[1].given, 0.5 + 6.5 / 9.0);
+        assert_relative_eq!(out[2].given, 8.0, max_relative = 1e-6);
         assert_eq!(out[2].level, Some(1));
         assert_relative_eq!(stats.used, 10.0);
     }
@@ -352,10 +444,30 @@ mod tests {
     }
 
     #[test]
-    fn nothing_fits_means_truncated_but_drawn() {
+    fn floors_beyond_the_time_are_drawn_and_reported() {
         let p = problem(&[(1.0, 1.0, &[4.0, 3.0]), (1.0, 2.0, &[4.0, 3.0])]);
         let mut out = Vec::new();
         let stats = RobinHood::new().distribute(&p, 1.0, &mut out);
+        // Each gets its floor, nothing more: drawn at the cheapest, never dropped.
+        assert!(out.iter().all(|a| a.level == Some(1) && a.given == 3.0));
+        assert_eq!((stats.drawn, stats.dropped), (2, 0));
+        assert_relative_eq!(stats.floor, 6.0);
+        assert_relative_eq!(stats.floor_excess, 5.0);
+        assert_relative_eq!(stats.overrun, 5.0);
+    }
+
+    #[test]
+    fn without_floors_a_share_below_the_cheapest_is_truncated() {
+        // The paper's hand-out: no floors given, so low shares draw truncated.
+        let mut out = Vec::new();
+        let stats = RobinHood::new().distribute_with(
+            &[1.0, 1.0],
+            &[1.0, 2.0],
+            &[],
+            1.0,
+            |_, time| fit_ladder(&[4.0_f32, 3.0][..], time),
+            &mut out,
+        );
         assert!(out.iter().all(|a| a.truncated && a.level == Some(1)));
         assert_eq!((stats.drawn, stats.dropped, stats.truncated), (2, 0, 2));
         assert_relative_eq!(stats.overrun, 5.0);

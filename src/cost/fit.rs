@@ -233,4 +233,3 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     }
     Some(x)
 }
-

@@ -18,7 +18,9 @@ mod primitive;
 pub use calibration::*;
 pub use fit::*;
 pub use measure::{DrawIncomplete, FrameClock, FrameEnd, FrameSample, FrameSamples, FrameStart};
-pub use model::{CostModel, FrameOverlap, FramePrediction, LearnedCosts, LearnedFrame, LearningRates};
+pub use model::{
+    CostModel, FrameOverlap, FramePrediction, LearnedCosts, LearnedFrame, LearningRates,
+};
 pub use primitive::{FamilyScales, FamilyTimes, PrimitiveCosts};
 
 use bevy::prelude::*;
@@ -200,8 +202,7 @@ fn load_calibration(
     *loaded = Some((settings.calibration.clone(), adapter.as_deref().cloned()));
     let chosen = match (&settings.calibration, adapter.as_deref()) {
         (CalibrationChoice::Keep, _) | (CalibrationChoice::Adapter, None) => return,
-        (CalibrationChoice::File(path), _) => match read_calibration(std::path::Path::new(path))
-        {
+        (CalibrationChoice::File(path), _) => match read_calibration(std::path::Path::new(path)) {
             Ok(c) => {
                 info!("cost model: calibration {path} ({})", c.adapter);
                 c

@@ -282,7 +282,6 @@ impl CostModel {
         self.reset();
     }
 
-
     /// The factors on the calibration's per-primitive costs the budget prices with now
     /// (learned costs and current speed).
     pub fn family_scales(&self) -> FamilyScales {
@@ -455,7 +454,10 @@ mod tests {
                     assert!(r >= 0.0 && r.is_finite());
                     if r > 0.0 {
                         let f = overlap.frame_time(logic, r);
-                        assert!((f - target).abs() < 1e-5, "{overlap:?} {logic} {target}: {f}");
+                        assert!(
+                            (f - target).abs() < 1e-5,
+                            "{overlap:?} {logic} {target}: {f}"
+                        );
                     } else {
                         assert!(overlap.frame_time(logic, 0.0) >= target - 1e-6);
                     }

@@ -90,8 +90,8 @@ impl<const N: usize> PriorRegression<N> {
         // The excitation the prior is measured against forgets like the data, but counts
         // every frame, whatever its weight: a run of outliers does not weaken the prior.
         self.weight = forget * self.weight + 1.0;
-        for j in 0..N {
-            self.mean_square[j] = forget * self.mean_square[j] + x[j] * x[j];
+        for (square, x) in self.mean_square.iter_mut().zip(x) {
+            *square = forget * *square + x * x;
         }
         self.solve();
     }
@@ -100,20 +100,18 @@ impl<const N: usize> PriorRegression<N> {
         let mut a = self.gram;
         let mut b = self.moment;
         for j in 0..N {
-            let strength =
-                self.prior_frames * self.mean_square[j] / self.weight.max(1e-12) + 1e-18;
+            let strength = self.prior_frames * self.mean_square[j] / self.weight.max(1e-12) + 1e-18;
             a[j][j] += strength;
             b[j] += strength * self.prior[j];
         }
         if let Some(theta) = solve(a, b) {
-            for j in 0..N {
-                let t = theta[j];
-                self.theta[j] = if t.is_finite() {
-                    t.clamp(self.lower[j], self.upper[j])
+            self.theta = core::array::from_fn(|j| {
+                if theta[j].is_finite() {
+                    theta[j].clamp(self.lower[j], self.upper[j])
                 } else {
                     self.prior[j]
-                };
-            }
+                }
+            });
         }
     }
 
@@ -261,7 +259,11 @@ impl<const N: usize> CostFilter<N> {
         speed_seconds: f32,
         costs_seconds: f32,
     ) -> Self {
-        assert!(N < MAX_STATE, "a cost filter keeps at most {} costs", MAX_STATE - 1);
+        assert!(
+            N < MAX_STATE,
+            "a cost filter keeps at most {} costs",
+            MAX_STATE - 1
+        );
         let prior = prior.map(|p| if p.is_finite() { p.max(MIN_PRIOR) } else { 1.0 });
         let mut covariance = [[0.0; MAX_STATE]; MAX_STATE];
         for (i, row) in covariance.iter_mut().enumerate().take(N + 1) {
@@ -353,8 +355,8 @@ impl<const N: usize> CostFilter<N> {
         for i in 0..n {
             let gain = ph[i] / innovation;
             self.state[i] += gain * error;
-            for k in 0..n {
-                self.covariance[i][k] -= gain * ph[k];
+            for (p, ph) in self.covariance[i][..n].iter_mut().zip(&ph[..n]) {
+                *p -= gain * ph;
             }
         }
         for i in 0..n {
@@ -371,7 +373,11 @@ impl<const N: usize> CostFilter<N> {
             let v = self.state[j + 1];
             let lo = (self.lower[j] / self.prior[j]).ln();
             let hi = (self.upper[j] / self.prior[j]).ln();
-            self.state[j + 1] = if v.is_finite() { v.clamp(lo, hi.max(lo)) } else { 0.0 };
+            self.state[j + 1] = if v.is_finite() {
+                v.clamp(lo, hi.max(lo))
+            } else {
+                0.0
+            };
         }
         self.gate.observe(error as f32, dt as f32);
     }
@@ -424,7 +430,10 @@ mod tests {
             r.update(&x, 2.0 * x[0] + 0.5 * x[1], 1.0, 0.05);
         }
         let t = r.parameters();
-        assert!((t[0] - 2.0).abs() < 0.05 && (t[1] - 0.5).abs() < 0.05, "{t:?}");
+        assert!(
+            (t[0] - 2.0).abs() < 0.05 && (t[1] - 0.5).abs() < 0.05,
+            "{t:?}"
+        );
     }
 
     #[test]
@@ -437,7 +446,10 @@ mod tests {
         }
         let t = r.parameters();
         assert_eq!(t[2], 3.0);
-        assert!((t[0] - 0.5).abs() < 0.05 && (t[1] - 4.0).abs() < 0.05, "{t:?}");
+        assert!(
+            (t[0] - 0.5).abs() < 0.05 && (t[1] - 4.0).abs() < 0.05,
+            "{t:?}"
+        );
     }
 
     #[test]
@@ -479,17 +491,29 @@ mod tests {
             f.learn(&x, truth(&x), 0.05);
         }
         let x = [1.0, 0.03];
-        assert!((f.predict(&x) / truth(&x) - 1.0).abs() < 0.01, "{:?}", f.costs());
+        assert!(
+            (f.predict(&x) / truth(&x) - 1.0).abs() < 0.01,
+            "{:?}",
+            f.costs()
+        );
         let before = f.predict(&x);
         f.learn(&x, 10.0 * truth(&x), 0.05);
-        assert!((f.predict(&x) / before - 1.0).abs() < 0.02, "a hitch moved it");
+        assert!(
+            (f.predict(&x) / before - 1.0).abs() < 0.02,
+            "a hitch moved it"
+        );
         let (speed, costs) = (f.speed(), f.costs());
         for _ in 0..20 {
             f.learn(&x, 1.4 * truth(&x), 0.05);
         }
         assert!((f.predict(&x) / (1.4 * truth(&x)) - 1.0).abs() < 0.03);
         // The step went to the speed, not to the costs.
-        assert!((f.speed() / speed - 1.4).abs() < 0.05, "{} → {}", speed, f.speed());
+        assert!(
+            (f.speed() / speed - 1.4).abs() < 0.05,
+            "{} → {}",
+            speed,
+            f.speed()
+        );
         for (a, b) in costs.iter().zip(f.costs()) {
             assert!((b / a - 1.0).abs() < 0.03, "{costs:?} → {:?}", f.costs());
         }
@@ -509,7 +533,10 @@ mod tests {
             let x = [1.0, 0.03];
             let predicted = f.predict(&x);
             let measured = (truth * 0.04) as f32;
-            assert!((predicted / measured - 1.0).abs() < 0.05, "×{truth}: {predicted} vs {measured}");
+            assert!(
+                (predicted / measured - 1.0).abs() < 0.05,
+                "×{truth}: {predicted} vs {measured}"
+            );
         }
     }
 

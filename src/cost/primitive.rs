@@ -170,4 +170,3 @@ impl PrimitiveCosts {
         count as f32 * (Self::pick(&self.point, size) + Self::pick(&self.point_pixel, size) * s * s)
     }
 }
-

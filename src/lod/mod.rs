@@ -37,9 +37,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::SherwoodSystems;
 use crate::budget::{
-    Allocation, BudgetProblem, BudgetStrategy, Fit, FunkhouserIncremental,
-    FunkhouserSequin, Level, ObjectDesc, PreviousSelection, RobinHood, TriangleBudget,
-    ValueFunction, ValueInputs, ValueModel,
+    Allocation, BudgetProblem, BudgetStrategy, Fit, FunkhouserIncremental, FunkhouserSequin, Level,
+    ObjectDesc, PreviousSelection, RobinHood, TriangleBudget, ValueFunction, ValueInputs,
+    ValueModel,
 };
 use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction, LearnedCosts};
 use crate::culling::{ForestCulling, InstanceVisibility};
@@ -168,9 +168,16 @@ pub struct LodDiagnostics {
     /// What the cost model has learned.
     pub learned: LearnedCosts,
     /// Predicted rendering time beyond the rendering time, ms: cheapest representations
-    /// that did not fit (Robin Hood draws them truncated, the triangle budget never goes
-    /// below them).
+    /// that did not fit (Robin Hood draws every visible object at least at its cheapest;
+    /// the triangle budget never goes below them).
     pub overrun_ms: f32,
+    /// Robin Hood: every visible object's cheapest representation together, ms, paid
+    /// before the rest of the rendering time is handed out by value.
+    pub floor_ms: f32,
+    /// How far those cheapest representations alone exceed the rendering time, ms: the
+    /// overrun no choice could avoid with every visible object drawn. Positive means the
+    /// target cannot be held with this many objects in view (see [`LodDiagnostics::visible_objects`]).
+    pub floor_excess_ms: f32,
     /// Primitives selected.
     pub counts: PrimitiveCounts,
     /// Objects drawn at their cheapest representation although it did not fit.
@@ -289,6 +296,8 @@ struct LodFrame {
     rank_starts: Vec<u32>,
     values: Vec<f32>,
     complexities: Vec<f32>,
+    /// Per object, the cost of its cheapest representation.
+    floors: Vec<f32>,
     /// Per tree, the list being chosen.
     lists: Vec<TreeDrawList>,
     allocations: Vec<Allocation>,
@@ -611,9 +620,8 @@ fn hand_out_time(
     let fixed = cost_model.render_fixed();
     let target = (budget.target_ms.max(0.0)) / 1000.0;
     let available = overlap.rendering_time(logic, target);
-    let target_below_logic = available <= 0.0
-        && budget.mode != LodMode::Unlimited
-        && budget.mode != LodMode::Static;
+    let target_below_logic =
+        available <= 0.0 && budget.mode != LodMode::Unlimited && budget.mode != LodMode::Static;
     if target_below_logic {
         let now = time.elapsed_secs();
         let since = *frame.target_below_logic_since.get_or_insert(now);
@@ -655,6 +663,8 @@ fn hand_out_time(
     let mut truncated = 0;
     let mut wasted = 0.0;
     let mut undrawn = 0;
+    let mut floor = 0.0;
+    let mut floor_excess = 0.0;
     match budget.mode {
         LodMode::Unlimited | LodMode::Static => {
             for (tree, list) in frame.trees.iter().zip(&mut frame.lists) {
@@ -675,8 +685,16 @@ fn hand_out_time(
                 } else {
                     LeafMethod::Static(budget.point_sizes.min.max(1))
                 };
-                predicted +=
-                    take(tree_leaves(m, tree, &frame.groups, &costs, method, 0.0, list)).cost;
+                predicted += take(tree_leaves(
+                    m,
+                    tree,
+                    &frame.groups,
+                    &costs,
+                    method,
+                    0.0,
+                    list,
+                ))
+                .cost;
             }
         }
         LodMode::Tc | LodMode::Tclod => {
@@ -687,6 +705,11 @@ fn hand_out_time(
                 &frame.objects,
                 &mut frame.lists,
             );
+            let leaf_method = if tclod {
+                LeafMethod::Tclod(budget.point_sizes)
+            } else {
+                LeafMethod::Tc
+            };
             // What object `i` draws with `given` seconds, written into `list`.
             let search = |i: usize, given: f32, list: &mut TreeDrawList| {
                 let object = objects[i];
@@ -695,12 +718,7 @@ fn hand_out_time(
                     return select::Selected::default();
                 };
                 if object.leaves {
-                    let method = if tclod {
-                        LeafMethod::Tclod(budget.point_sizes)
-                    } else {
-                        LeafMethod::Tc
-                    };
-                    tree_leaves(m, tree, groups, &costs, method, given, list)
+                    tree_leaves(m, tree, groups, &costs, leaf_method, given, list)
                 } else if tclod {
                     select::trunk_tclod(m, &tree.view, &costs, budget.line_widths, given, list)
                 } else {
@@ -708,16 +726,36 @@ fn hand_out_time(
                 }
             };
             let stats = if budget.strategy == StrategyKind::RobinHood {
+                // Every object's cheapest representation, paid before the hand-out.
+                let floors = &mut frame.floors;
+                floors.clear();
+                floors.extend(objects.iter().map(|object| {
+                    let tree = &trees[object.tree as usize];
+                    let Some(m) = model_of(tree) else {
+                        return 0.0;
+                    };
+                    if object.leaves {
+                        tree_leaves_floor(m, tree, groups, &costs, leaf_method)
+                    } else {
+                        select::trunk_floor(
+                            m,
+                            &tree.view,
+                            &costs,
+                            tclod.then_some(budget.line_widths),
+                        )
+                    }
+                }));
                 frame.robin_hood.distribute_with(
                     &frame.values,
                     &frame.complexities,
+                    &frame.floors,
                     rendering,
                     |i, given| {
-                        let chosen =
-                            take(search(i, given, &mut lists[objects[i].tree as usize]));
+                        let chosen = take(search(i, given, &mut lists[objects[i].tree as usize]));
                         Fit {
                             used: chosen.cost,
-                            level: 0,
+                            // 0: full detail, nothing more to buy.
+                            level: u32::from(!chosen.full),
                             truncated: chosen.truncated,
                         }
                     },
@@ -786,6 +824,8 @@ fn hand_out_time(
             truncated = stats.truncated;
             undrawn = stats.dropped;
             wasted = stats.wasted;
+            floor = stats.floor;
+            floor_excess = stats.floor_excess;
         }
     }
 
@@ -833,6 +873,8 @@ fn hand_out_time(
         measured_frame_predicted_ms: measured.predicted.frame_time * 1000.0,
         wasted_ms: wasted * 1000.0,
         overrun_ms: (predicted - rendering).max(0.0) * 1000.0,
+        floor_ms: floor * 1000.0,
+        floor_excess_ms: floor_excess * 1000.0,
         learned: cost_model.learned(),
         counts,
         truncated,
@@ -842,6 +884,24 @@ fn hand_out_time(
         select_stage_ms: 0.0,
         target_below_logic,
     };
+}
+
+/// What [`tree_leaves`] draws with no time: the cost of the leaves' cheapest
+/// representation.
+fn tree_leaves_floor(
+    model: &TreeModel,
+    tree: &VisibleTree,
+    groups: &[VisibleGroup],
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+) -> f32 {
+    match tree.leaf_depth {
+        Some(depth) => select::leaves_at_depth_floor(model, &tree.view, costs, method, depth),
+        None => {
+            let groups = &groups[tree.groups.start as usize..tree.groups.end as usize];
+            select::leaves_floor(model, &tree.view, costs, method, groups)
+        }
+    }
 }
 
 /// A tree's leaves by `method` with `time`: group by group, or all at one depth.

@@ -53,6 +53,9 @@ pub struct Selected {
     pub points: f32,
     /// The time was below the cheapest representation, which is drawn anyway.
     pub truncated: bool,
+    /// Full detail is drawn: every triangle of the object (of its visible leaf groups),
+    /// no line, no point. More time would change nothing.
+    pub full: bool,
 }
 
 fn pixels_per_unit(view: &TreeView, depth: f32) -> f32 {
@@ -108,25 +111,20 @@ pub fn trunk_tc(
     let total = model.trunk_triangle_count() as u32;
     let area = trunk_cost_area(model, pixels_per_unit(view, view.trunk_depth), costs);
     let each = costs.triangles(1, area);
-    let affordable = if each > 0.0 {
+    // (Full detail tested first: a division can land a hair below the whole count.)
+    let affordable = if each > 0.0 && costs.triangles(total, area) > time {
         (time.max(0.0) / each).min(total as f32) as u32
     } else {
         total
     };
     // The thickest segment that owns triangles is the minimum.
-    let minimum = model
-        .segments
-        .triangle_offsets
-        .windows(2)
-        .rev()
-        .map(|w| w[1] - w[0])
-        .find(|&n| n > 0)
-        .unwrap_or(0);
-    let count = affordable.max(minimum.min(total));
+    let minimum = thickest_triangles(model);
+    let count = affordable.max(minimum);
     out.trunk_triangles = total - count..total;
     Selected {
         cost: costs.triangles(count, area),
-        truncated: affordable < minimum.min(total),
+        truncated: affordable < minimum,
+        full: count == total,
         ..Selected::default()
     }
 }
@@ -233,13 +231,24 @@ pub fn trunk_tclod(
 ) -> Selected {
     let n = model.segments.len() as u32;
     let px = pixels_per_unit(view, view.trunk_depth);
+    let time = time.max(0.0);
+    let area = trunk_cost_area(model, px, costs);
+    // Full detail whenever the time pays for it: the search only runs below (thesis §6.5).
+    let full = trunk_triangle_cost(model, costs, 0, area);
+    if full <= time {
+        out.trunk_lines.clear();
+        out.trunk_triangles = thick_end(model, 0);
+        return Selected {
+            cost: full,
+            full: true,
+            ..Selected::default()
+        };
+    }
     let (drawn, static_k) = static_lines(model, px, widths, out);
     if static_k == 0 {
         // Too thick for the widest line (or no segments).
         return trunk_tc(model, view, costs, time, out);
     }
-    let time = time.max(0.0);
-    let area = trunk_cost_area(model, px, costs);
     if drawn == n {
         // Everything below half a pixel (most trees of a large forest): the thickest
         // segment stays, as the thinnest line, or as triangles when both fit — what the
@@ -312,6 +321,86 @@ pub fn trunk_tclod(
         lines,
         truncated: used > time,
         ..Selected::default()
+    }
+}
+
+/// The thickest segment that owns triangles: how many triangles it has (the trunk's
+/// cheapest drawing as triangles).
+fn thickest_triangles(model: &TreeModel) -> u32 {
+    let total = model.trunk_triangle_count() as u32;
+    model
+        .segments
+        .triangle_offsets
+        .windows(2)
+        .rev()
+        .map(|w| w[1] - w[0])
+        .find(|&n| n > 0)
+        .unwrap_or(0)
+        .min(total)
+}
+
+/// What [`trunk_tc`] (`widths` `None`) or [`trunk_tclod`] draws with no time at all: the
+/// cost of the trunk's cheapest representation, found without searching (the budget
+/// pays every visible object's floor before it hands out the rest).
+pub fn trunk_floor(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    widths: Option<PixelRange>,
+) -> f32 {
+    let px = pixels_per_unit(view, view.trunk_depth);
+    let area = trunk_cost_area(model, px, costs);
+    let tc_floor = || {
+        if costs.triangles(1, area) > 0.0 {
+            costs.triangles(thickest_triangles(model), area)
+        } else {
+            // Free triangles: all of them.
+            costs.triangles(model.trunk_triangle_count() as u32, area)
+        }
+    };
+    let Some(widths) = widths else {
+        return tc_floor();
+    };
+    let full = trunk_triangle_cost(model, costs, 0, area);
+    if full <= 0.0 {
+        return full;
+    }
+    let n = model.segments.len() as u32;
+    // The static lines' cost, and the width of the run holding the thickest segment.
+    let mut lines = 0.0;
+    let mut thickest_width = None;
+    let (drawn, static_k) =
+        crate::tree::trunk_line_runs(model.segments.diameters(), px, widths, |width, r| {
+            if r.contains(&(n - 1)) {
+                thickest_width = Some(width);
+            }
+            let length = segment_length(model, &r) * px * PROJECTED_LENGTH_FACTOR;
+            lines += costs.lines(width, r.end - r.start, length);
+        });
+    if static_k == 0 {
+        return tc_floor();
+    }
+    let thickest_line = |width: u32| {
+        costs.lines(
+            width,
+            1,
+            segment_length(model, &(n - 1..n)) * px * PROJECTED_LENGTH_FACTOR,
+        )
+    };
+    if drawn == n {
+        return thickest_line(widths.min.max(1));
+    }
+    let static_cost = lines + trunk_triangle_cost(model, costs, static_k, area);
+    if static_cost <= 0.0 {
+        static_cost
+    } else if trunk_triangle_cost(model, costs, static_k, area) <= 0.0 {
+        // All lines (or free triangles): the thickest line alone.
+        match (static_k == n, thickest_width) {
+            (true, Some(width)) => thickest_line(width),
+            _ => 0.0,
+        }
+    } else {
+        tc_floor()
     }
 }
 
@@ -403,7 +492,27 @@ pub fn leaves(
         .filter(|a| a.is_finite())
         .sum();
     let leaf_cost = LeafTriangles::of(model, costs, area_left);
-    let mut time_left = time.max(0.0);
+    let time = time.max(0.0);
+    // Full detail whenever the time pays for it: the search only runs below (thesis §6.5).
+    let method = match method {
+        LeafMethod::Tc | LeafMethod::Tclod(_)
+            if group_leaf_costs(model, view, costs, &leaf_cost, groups)
+                .map(|(n, leaf)| leaf * n as f32)
+                .sum::<f32>()
+                <= time =>
+        {
+            LeafMethod::Full
+        }
+        other => other,
+    };
+    // Each group's cheapest drawing is paid first and the rest shared by area, as Robin
+    // Hood pays every object's: a near group would otherwise buy a second leaf with a far
+    // group's floor, and the tree overrun its floor.
+    let floors: f32 = group_leaf_costs(model, view, costs, &leaf_cost, groups)
+        .zip(groups_with_leaves(model, view, groups))
+        .map(|((_, leaf), (_, area))| group_floor(method, costs, area, leaf))
+        .sum();
+    let mut extra = (time - floors).max(0.0);
     let mut total = Selected::default();
     for g in groups {
         let leaves = model.leaf_groups[g.group as usize].leaves.clone();
@@ -419,8 +528,10 @@ pub fn leaves(
             1.0
         };
         area_left -= area;
-        let given = time_left * share;
         let triangle_leaf = leaf_cost.per_leaf(costs, area / n as f32);
+        let portion = extra * share;
+        extra -= portion;
+        let given = group_floor(method, costs, area, triangle_leaf) + portion;
         let chosen = match method {
             LeafMethod::Tc => group_tc(&leaves, triangle_leaf, given, out),
             LeafMethod::Full => {
@@ -444,12 +555,89 @@ pub fn leaves(
                 group_tclod(&leaves, area, triangle_leaf, costs, sizes, given, out)
             }
         };
-        time_left = (time_left - chosen.cost).max(0.0);
+        extra += (given - chosen.cost).max(0.0);
         total.cost += chosen.cost;
         total.points += chosen.points;
-        total.truncated |= chosen.truncated;
     }
+    total.full = method == LeafMethod::Full && !groups.is_empty();
+    total.truncated = overran(method, total.cost, time);
     total
+}
+
+/// Per visible group with leaves, its leaf count and projected area.
+fn groups_with_leaves<'a>(
+    model: &'a TreeModel,
+    view: &'a TreeView,
+    groups: &'a [VisibleGroup],
+) -> impl Iterator<Item = (u32, f32)> + 'a {
+    groups.iter().filter_map(move |g| {
+        let n = model.leaf_groups[g.group as usize].leaves.len() as u32;
+        let area = group_area(model, view, n, g.depth);
+        (n > 0).then_some((n, if area.is_finite() { area } else { 0.0 }))
+    })
+}
+
+/// The cost of one group's cheapest drawing by `method`: one far leaf as triangles (TC)
+/// or one far point at the largest size for the group (TCLOD); 0 for the methods that
+/// take no time.
+fn group_floor(method: LeafMethod, costs: &PrimitiveCosts, area: f32, triangle_leaf: f32) -> f32 {
+    match method {
+        LeafMethod::Tc => triangle_leaf,
+        LeafMethod::Tclod(sizes) => costs.points(largest_point(area, 1, sizes), 1),
+        LeafMethod::Static(_) | LeafMethod::Full => 0.0,
+    }
+}
+
+/// Whether a search by `method` that drew `cost` with `time` overran it (drew its
+/// cheapest, which did not fit).
+fn overran(method: LeafMethod, cost: f32, time: f32) -> bool {
+    matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_)) && cost > time * (1.0 + 1e-6)
+}
+
+/// Per visible group, its leaf count and the time of one of its leaves as triangles.
+fn group_leaf_costs<'a>(
+    model: &'a TreeModel,
+    view: &'a TreeView,
+    costs: &'a PrimitiveCosts,
+    leaf_cost: &'a LeafTriangles,
+    groups: &'a [VisibleGroup],
+) -> impl Iterator<Item = (u32, f32)> + 'a {
+    groups_with_leaves(model, view, groups)
+        .map(move |(n, area)| (n, leaf_cost.per_leaf(costs, area / n as f32)))
+}
+
+/// What [`leaves`] draws with no time at all: the cost of the leaves' cheapest
+/// representation, found without searching.
+pub fn leaves_floor(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+    groups: &[VisibleGroup],
+) -> f32 {
+    let tree_area: f32 = groups
+        .iter()
+        .map(|g| {
+            let n = model.leaf_groups[g.group as usize].leaves.len() as u32;
+            group_area(model, view, n, g.depth)
+        })
+        .filter(|a| a.is_finite())
+        .sum();
+    let leaf_cost = LeafTriangles::of(model, costs, tree_area);
+    let each = || group_leaf_costs(model, view, costs, &leaf_cost, groups);
+    let full: f32 = each().map(|(n, leaf)| leaf * n as f32).sum();
+    match method {
+        LeafMethod::Full => full,
+        _ if full <= 0.0 => full,
+        LeafMethod::Tc | LeafMethod::Tclod(_) => each()
+            .zip(groups_with_leaves(model, view, groups))
+            .map(|((_, leaf), (_, area))| group_floor(method, costs, area, leaf))
+            .sum(),
+        LeafMethod::Static(_) => {
+            let mut scratch = TreeDrawList::default();
+            leaves(model, view, costs, method, groups, 0.0, &mut scratch).cost
+        }
+    }
 }
 
 /// The static split of a group of `n` leaves projecting `area` pixels at point `size`
@@ -521,7 +709,7 @@ fn group_tc(
     out: &mut TreeDrawList,
 ) -> Selected {
     let n = leaves.end - leaves.start;
-    let affordable = if triangle_leaf > 0.0 {
+    let affordable = if triangle_leaf > 0.0 && triangle_leaf * n as f32 > time {
         (time / triangle_leaf).min(n as f32) as u32
     } else {
         n
@@ -550,6 +738,8 @@ fn largest_point(area: f32, groups: u32, sizes: PixelRange) -> u32 {
 /// What TCLOD draws of `n` leaves projecting `area` pixels, given `time`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum TclodChoice {
+    /// Every leaf as triangles.
+    Full,
     /// The static split at this point size.
     Split(u32),
     /// Only this many far points (at least one) at the largest size.
@@ -569,6 +759,17 @@ fn tclod_choice(
     sizes: PixelRange,
     time: f32,
 ) -> (TclodChoice, Selected) {
+    // Full detail whenever the time pays for it: the search only runs below (thesis §6.5).
+    let full = triangle_leaf * n as f32;
+    if full <= time {
+        return (
+            TclodChoice::Full,
+            Selected {
+                cost: full,
+                ..Selected::default()
+            },
+        );
+    }
     let min = sizes.min.max(1);
     let max = largest_point(area, groups, sizes);
     // (The whole cost, and its points' part.)
@@ -624,6 +825,7 @@ fn tclod_choice(
             lines: 0.0,
             points: each * count as f32,
             truncated: affordable == 0,
+            full: false,
         },
     )
 }
@@ -641,6 +843,7 @@ fn group_tclod(
     let n = leaves.end - leaves.start;
     let (choice, selected) = tclod_choice(n, area, 1, triangle_leaf, costs, sizes, time);
     match choice {
+        TclodChoice::Full => write_group(leaves, 0, true, n, 1, out),
         TclodChoice::Split(size) => {
             let (points, far, tris) = static_split(n, area, size);
             write_group(leaves, points, far, tris, size, out);
@@ -648,6 +851,68 @@ fn group_tclod(
         TclodChoice::FarPoints { size, count } => write_group(leaves, count, true, 0, size, out),
     }
     selected
+}
+
+/// A tree's leaves, all at one depth.
+struct TreeAtDepth {
+    /// Leaves.
+    n: u32,
+    /// Leaf groups (at most `n`).
+    groups: u32,
+    /// The leaves' projected area, pixels.
+    area: f32,
+    /// The time of one leaf as triangles.
+    triangle_leaf: f32,
+}
+
+impl TreeAtDepth {
+    fn of(model: &TreeModel, view: &TreeView, costs: &PrimitiveCosts, depth: f32) -> Option<Self> {
+        // Valid models' groups tile the leaves and none is empty (`TreeModel::validate`).
+        let n = model.leaves.len() as u32;
+        if n == 0 {
+            return None;
+        }
+        let leaf_area = group_area(model, view, 1, depth);
+        let (leaf_area, area) = match n as f32 * leaf_area {
+            area if area.is_finite() => (leaf_area, area),
+            _ => (0.0, 0.0),
+        };
+        Some(Self {
+            n,
+            groups: (model.leaf_groups.len() as u32).min(n),
+            area,
+            triangle_leaf: LeafTriangles::of(model, costs, area).per_leaf(costs, leaf_area),
+        })
+    }
+}
+
+/// What [`leaves_at_depth`] draws with no time at all: the cost of the leaves' cheapest
+/// representation, found without searching.
+pub fn leaves_at_depth_floor(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+    depth: f32,
+) -> f32 {
+    let Some(tree) = TreeAtDepth::of(model, view, costs, depth) else {
+        return 0.0;
+    };
+    let full = tree.triangle_leaf * tree.n as f32;
+    match method {
+        LeafMethod::Full => full,
+        _ if full <= 0.0 => full,
+        // A far leaf of every group.
+        LeafMethod::Tc => tree.triangle_leaf * tree.groups as f32,
+        // A far point of every group, all at the largest size for an average group.
+        LeafMethod::Tclod(sizes) => {
+            costs.points(largest_point(tree.area, tree.groups, sizes), tree.groups)
+        }
+        LeafMethod::Static(_) => {
+            let mut scratch = TreeDrawList::default();
+            leaves_at_depth(model, view, costs, method, depth, 0.0, &mut scratch).cost
+        }
+    }
 }
 
 /// A tree's leaves, all at one depth: the choice [`leaves`] makes group by group, made
@@ -674,25 +939,23 @@ pub fn leaves_at_depth(
 ) -> Selected {
     out.leaf_triangles.clear();
     out.leaf_points.clear();
-    // Valid models' groups tile the leaves and none is empty (`TreeModel::validate`).
-    let n = model.leaves.len() as u32;
-    let groups = (model.leaf_groups.len() as u32).min(n);
-    if n == 0 {
+    let Some(TreeAtDepth {
+        n,
+        groups,
+        area,
+        triangle_leaf,
+    }) = TreeAtDepth::of(model, view, costs, depth)
+    else {
         return Selected::default();
-    }
-    let leaf_area = group_area(model, view, 1, depth);
-    let (leaf_area, area) = match n as f32 * leaf_area {
-        area if area.is_finite() => (leaf_area, area),
-        _ => (0.0, 0.0),
     };
-    let triangle_leaf = LeafTriangles::of(model, costs, area).per_leaf(costs, leaf_area);
     let time = time.max(0.0);
     // The tree's (points, triangle leaves, point size). Points alone are far points, and
     // with triangles near ones (`static_split`).
     let (points, tris, size) = match method {
         LeafMethod::Full => (0, n, 1),
         LeafMethod::Tc => {
-            let affordable = if triangle_leaf > 0.0 {
+            // (Full detail tested first: a division can land a hair below `n`.)
+            let affordable = if triangle_leaf > 0.0 && triangle_leaf * n as f32 > time {
                 (time / triangle_leaf).min(n as f32) as u32
             } else {
                 n
@@ -705,6 +968,7 @@ pub fn leaves_at_depth(
         }
         LeafMethod::Tclod(sizes) => {
             match tclod_choice(n, area, groups, triangle_leaf, costs, sizes, time) {
+                (TclodChoice::Full, _) => (0, n, 1),
                 (TclodChoice::Split(size), _) => {
                     let (points, _, tris) = static_split(n, area, size);
                     (points, tris, size)
@@ -739,6 +1003,7 @@ pub fn leaves_at_depth(
         cost,
         lines: 0.0,
         points: point_cost,
-        truncated: matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_)) && cost > time,
+        truncated: overran(method, cost, time),
+        full: points == 0 && tris == n,
     }
 }

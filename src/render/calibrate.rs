@@ -40,8 +40,8 @@ use bevy::prelude::*;
 
 use crate::cost::{
     AdapterIdentity, Calibration, CalibrationDir, CostModel, CostSample, CostSettings,
-    FrameSamples, LinearCost, LogicTable, calibration_file_name,
-    fit_nonnegative_cost, fit_sized_costs,
+    FrameSamples, LinearCost, LogicTable, calibration_file_name, fit_nonnegative_cost,
+    fit_sized_costs,
 };
 use crate::culling::ForestCulling;
 use crate::draw::{LineRun, PointRun, TreeDrawList};
