@@ -71,7 +71,39 @@ usage: forest [OPTIONS]
   --screenshot FILE.png  save a screenshot of measured frame K (with --at-frame K)
   --at-frame K
   --headless             render to an image, without a window
-  --help                 this text";
+  --help                 this text
+
+The record (--record) has one row per measured frame, times in ms:
+  frame                  measured frame (0 = the first after the warm-up)
+  visible                visible tree instances
+  target_ms              the target frame time
+  logic_ms, measured_logic_ms
+                         the main world's update, predicted and measured
+  render_budget_ms       rendering time handed out to the objects
+  render_fixed_ms        predicted fixed part of the rendering
+  predicted_render_ms, measured_render_ms
+                         the render world's time, predicted and measured
+  predicted_ms, measured_ms
+                         the frame time, predicted and measured (the interval between
+                         this frame's end of rendering and the previous frame's)
+  triangles, lines, points
+                         primitives selected
+  truncated, undrawn     objects drawn below their cheapest, objects not drawn
+  wasted_ms              rendering time handed out that nobody used
+  overrun_ms             predicted rendering beyond the rendering time
+  floor_ms, floor_excess_ms
+                         every visible object's cheapest representation together, and
+                         how far it exceeds the rendering time
+  pass_ms                the forest pass's GPU timestamps, when available
+  render_speed, logic_speed
+                         how much slower than its learned costs the machine runs now
+  triangle_us, triangle_pixel_ns, line_us, point_us
+                         learned costs (per triangle, per triangle pixel, per 1 px line,
+                         per 1 px point)
+  logic_fixed_ms, logic_per_instance_us
+                         learned logic
+  sync_ms, serial        learned overlap: frame = max(logic, render) + serial ·
+                         min(logic, render) + sync";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum CameraPath {
@@ -736,6 +768,8 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("undrawn", |r| r.diagnostics.undrawn.to_string()),
     ("wasted_ms", |r| ms(r.diagnostics.wasted_ms)),
     ("overrun_ms", |r| ms(r.diagnostics.overrun_ms)),
+    ("floor_ms", |r| ms(r.diagnostics.floor_ms)),
+    ("floor_excess_ms", |r| ms(r.diagnostics.floor_excess_ms)),
     ("pass_ms", |r| {
         r.pass_ms.map_or(String::new(), |t| ms(t as f32))
     }),

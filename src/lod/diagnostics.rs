@@ -14,7 +14,7 @@ use crate::SherwoodSystems;
 pub struct LodDiagnosticsPlugin;
 
 /// The published diagnostics, with how each is read off [`LodDiagnostics`].
-const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 15] = [
+const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 22] = [
     (
         DiagnosticPath::const_new("sherwood/visible_objects"),
         "",
@@ -74,6 +74,41 @@ const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 15] = [
     (DiagnosticPath::const_new("sherwood/overrun"), "ms", |d| {
         f64::from(d.overrun_ms)
     }),
+    (
+        DiagnosticPath::const_new("sherwood/floor_excess"),
+        "ms",
+        |d| f64::from(d.floor_excess_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/measured_logic"),
+        "ms",
+        |d| f64::from(d.measured_logic_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/measured_render"),
+        "ms",
+        |d| f64::from(d.measured_render_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/measured_frame_predicted"),
+        "ms",
+        |d| f64::from(d.measured_frame_predicted_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/learned_render_fixed"),
+        "ms",
+        |d| f64::from(d.learned.render_fixed_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/learned_render_speed"),
+        "",
+        |d| f64::from(d.learned.render_speed),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/learned_logic_fixed"),
+        "ms",
+        |d| f64::from(d.learned.logic_fixed_ms),
+    ),
 ];
 
 impl Plugin for LodDiagnosticsPlugin {

@@ -234,16 +234,21 @@ pub fn trunk_tclod(
     let time = time.max(0.0);
     let area = trunk_cost_area(model, px, costs);
     // Full detail whenever the time pays for it: the search only runs below (thesis §6.5).
-    let full = trunk_triangle_cost(model, costs, 0, area);
-    if full <= time {
-        out.trunk_lines.clear();
-        out.trunk_triangles = thick_end(model, 0);
-        return Selected {
-            cost: full,
-            full: true,
-            ..Selected::default()
-        };
-    }
+    // Full detail costs at least the static LOD's representation (lines are cheaper than
+    // the triangles they replace) and the thickest segment's triangles, so it is tried
+    // only once those fit: far trees, the many, skip it.
+    let full = |out: &mut TreeDrawList| {
+        let cost = trunk_triangle_cost(model, costs, 0, area);
+        (cost <= time).then(|| {
+            out.trunk_lines.clear();
+            out.trunk_triangles = thick_end(model, 0);
+            Selected {
+                cost,
+                full: true,
+                ..Selected::default()
+            }
+        })
+    };
     let (drawn, static_k) = static_lines(model, px, widths, out);
     if static_k == 0 {
         // Too thick for the widest line (or no segments).
@@ -264,6 +269,9 @@ pub fn trunk_tclod(
         let thick_triangles = thick_end(model, n - 1);
         // (A segment joined to its parent by proximity owns no triangles: it stays a line.)
         return if !thick_triangles.is_empty() && line <= time && thick <= time {
+            if let Some(full) = full(out) {
+                return full;
+            }
             out.trunk_triangles = thick_triangles;
             Selected {
                 cost: thick,
@@ -287,8 +295,15 @@ pub fn trunk_tclod(
     // Lines are cheaper than the triangles they replace and removing lines is cheaper
     // still, so each cost below is monotone in its variable: binary searches find the
     // extreme that fits.
+    let cost_of = |runs: &[LineRun], dropped: u32, k: u32| {
+        lines_cost(runs, dropped, model, costs, px, k) + triangles(k)
+    };
+    let static_fits = cost_of(&out.trunk_lines, drawn, static_k) <= time;
+    if static_fits && let Some(full) = full(out) {
+        return full;
+    }
     let runs = &out.trunk_lines;
-    let cost = |dropped: u32, k: u32| lines_cost(runs, dropped, model, costs, px, k) + triangles(k);
+    let cost = |dropped: u32, k: u32| cost_of(runs, dropped, k);
     let smallest = |mut lo: u32, mut hi: u32, fits: &dyn Fn(u32) -> bool| {
         while lo < hi {
             let mid = lo + (hi - lo) / 2;
@@ -300,20 +315,25 @@ pub fn trunk_tclod(
         }
         lo
     };
-    let (dropped, k, used) = if cost(drawn, static_k) <= time {
+    let (dropped, k) = if static_fits {
         // The most triangles: the smallest first-triangle segment that fits.
-        let k = smallest(drawn, static_k, &|k| cost(drawn, k) <= time);
-        (drawn, k, cost(drawn, k))
+        (
+            drawn,
+            smallest(drawn, static_k, &|k| cost(drawn, k) <= time),
+        )
     } else if triangles(static_k) <= time {
         // Fewer lines: drop the thinnest until it fits. A trunk all of lines keeps at
         // least its thickest one (drawn truncated when even that does not fit).
         let last = if static_k == n { n - 1 } else { static_k };
-        let d = smallest(drawn, last, &|d| cost(d, static_k) <= time);
-        (d, static_k, cost(d, static_k))
+        (
+            smallest(drawn, last, &|d| cost(d, static_k) <= time),
+            static_k,
+        )
     } else {
         return trunk_tc(model, view, costs, time, out);
     };
-    let lines = lines_cost(&out.trunk_lines, dropped, model, costs, px, k);
+    let lines = lines_cost(runs, dropped, model, costs, px, k);
+    let used = lines + triangles(k);
     clip_lines(&mut out.trunk_lines, dropped, k);
     out.trunk_triangles = thick_end(model, k);
     Selected {

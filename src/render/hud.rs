@@ -74,6 +74,7 @@ fn update_hud(
     stats: Res<ForestRenderStats>,
     mut hud: ResMut<ForestHud>,
     budget: Option<Res<crate::lod::FrameBudget>>,
+    lod: Option<Res<crate::lod::LodDiagnostics>>,
     mut text: Query<(&mut Text, &mut Visibility), With<HudText>>,
 ) {
     let frame_ms = time.delta_secs() * 1000.0;
@@ -95,7 +96,7 @@ fn update_hud(
         if !hud.visible {
             continue;
         }
-        text.0 = hud_text(&hud, &stats, budget.as_deref());
+        text.0 = hud_text(&hud, &stats, budget.as_deref(), lod.as_deref());
     }
 }
 
@@ -103,6 +104,7 @@ fn hud_text(
     hud: &ForestHud,
     stats: &ForestRenderStats,
     budget: Option<&crate::lod::FrameBudget>,
+    lod: Option<&crate::lod::LodDiagnostics>,
 ) -> String {
     use core::fmt::Write;
     let mut s = String::new();
@@ -126,6 +128,36 @@ fn hud_text(
         }
         None => {
             let _ = writeln!(s, "target    none");
+        }
+    }
+    if let Some(d) = lod.filter(|d| d.measured_frame > 0) {
+        // The latest measured frame against what was predicted for it, and what the
+        // cost model has learned (see `crate::cost`).
+        let _ = writeln!(
+            s,
+            "measured  {:.1} ms (logic {:.1}, render {:.1}) predicted {:.1} ms",
+            d.measured_frame_ms,
+            d.measured_logic_ms,
+            d.measured_render_ms,
+            d.measured_frame_predicted_ms
+        );
+        let l = &d.learned;
+        let _ = writeln!(
+            s,
+            "learned   fixed {:.1} ms, triangle {:.2} us, line {:.2} us, point {:.2} us",
+            l.render_fixed_ms, l.triangle_us, l.line_us, l.point_us
+        );
+        let _ = writeln!(
+            s,
+            "          logic {:.1} ms + {:.1} us/tree, speed x{:.2}, {} frames",
+            l.logic_fixed_ms, l.logic_per_instance_us, l.render_speed, l.frames_learned
+        );
+        if d.floor_excess_ms > 0.0 {
+            let _ = writeln!(
+                s,
+                "floors    {:.1} ms over the rendering time ({} objects)",
+                d.floor_excess_ms, d.visible_objects
+            );
         }
     }
     if let Some(gpu) = stats.gpu_time_ms {
