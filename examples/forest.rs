@@ -48,6 +48,8 @@ usage: forest [OPTIONS]
   --seed S               placement seed
   --path linear|zigzag   walk the paper's camera path instead of flying freely
   --path-frames M        stretch or squeeze the path to M frames (linear 1100, zigzag 1700)
+  --hold-frame K         hold the camera at the path's frame K: identical frames, to
+                         measure this machine's noise floor
   --frames N             exit after N measured frames (default: the path's length)
   --warmup N             frames excluded from statistics (default 60)
   --target-ms T          target frame time in ms (default 100)
@@ -127,6 +129,7 @@ struct Options {
     seed: Option<u64>,
     path: Option<CameraPath>,
     path_frames: Option<u32>,
+    hold_frame: Option<u32>,
     frames: Option<u32>,
     warmup: u32,
     target_ms: f32,
@@ -161,6 +164,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         seed: None,
         path: None,
         path_frames: None,
+        hold_frame: None,
         frames: None,
         warmup: 60,
         target_ms: 100.0,
@@ -203,6 +207,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
                 });
             }
             "--path-frames" => o.path_frames = Some(number("--path-frames", it.next())?),
+            "--hold-frame" => o.hold_frame = Some(number("--hold-frame", it.next())?),
             "--frames" => o.frames = Some(number("--frames", it.next())?),
             "--warmup" => o.warmup = number("--warmup", it.next())?,
             "--target-ms" => o.target_ms = number("--target-ms", it.next())?,
@@ -273,6 +278,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
         .is_some_and(|f| !(f.is_finite() && f > 0.0))
     {
         return Err("--scale-calibration must be a positive number".into());
+    }
+    if o.hold_frame.is_some() && o.path.is_none() {
+        return Err("--hold-frame needs --path".into());
     }
     if o.path_frames == Some(0) {
         return Err("--path-frames must be positive".into());
@@ -664,7 +672,9 @@ fn follow_path(
     };
     let size = terrain.terrain.size();
     let frames = options.path_length().unwrap_or(path.frames()).max(2);
-    let measured = run.frame.saturating_sub(options.warmup);
+    let measured = options
+        .hold_frame
+        .unwrap_or(run.frame.saturating_sub(options.warmup));
     let t = measured as f32 / (frames - 1) as f32;
     let (at, heading) = path_pose(path, t, size);
     let ground = terrain
