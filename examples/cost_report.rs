@@ -16,7 +16,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use frame_stats::FrameStats;
 use record::Record;
@@ -90,13 +90,7 @@ fn main() {
 }
 
 fn run(raw: &Path, docs: &Path) -> Result<(), String> {
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(raw)
-        .map_err(|e| format!("{}: {e}", raw.display()))?
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "csv"))
-        .collect();
-    paths.sort();
+    let paths = record::csv_files(raw)?;
     let stem = |p: &Path| {
         p.file_stem()
             .and_then(|s| s.to_str())

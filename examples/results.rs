@@ -11,13 +11,16 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use frame_stats::FrameStats;
 use plotters::prelude::*;
+use record::Record;
 
 #[path = "support/frame_stats.rs"]
 mod frame_stats;
+#[path = "support/record.rs"]
+mod record;
 
 /// One recorded frame.
 #[derive(Clone, Debug)]
@@ -96,39 +99,28 @@ fn read_run(csv: &Path) -> Result<Option<Run>, String> {
     let Some((trees, path, mode, fraction, corrected)) = parse_name(stem) else {
         return Ok(None);
     };
-    let text = std::fs::read_to_string(csv).map_err(|e| format!("{}: {e}", csv.display()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let column = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .ok_or_else(|| format!("{}: no column {name}", csv.display()))
+    let record = Record::read(csv)?;
+    let column = |name| {
+        record
+            .column(name)
+            .map_err(|e| format!("{}: {e}", csv.display()))
     };
-    let [frame, visible, logic, predicted, measured] = [
+    let (frame, visible, logic, predicted, measured) = (
         column("frame")?,
         column("visible")?,
         column("logic_ms")?,
         column("predicted_ms")?,
         column("measured_ms")?,
-    ];
-    let mut frames = Vec::new();
-    for (i, line) in lines.enumerate() {
-        let cells: Vec<&str> = line.split(',').collect();
-        let number = |c: usize| -> Result<f64, String> {
-            cells
-                .get(c)
-                .and_then(|v| v.parse().ok())
-                .ok_or_else(|| format!("{}: row {}: bad cell {c}", csv.display(), i + 2))
-        };
-        frames.push(Frame {
-            frame: number(frame)? as u32,
-            visible: number(visible)?,
-            logic_ms: number(logic)?,
-            predicted_ms: number(predicted)?,
-            measured_ms: number(measured)?,
-        });
-    }
+    );
+    let frames = (0..frame.len())
+        .map(|i| Frame {
+            frame: frame[i] as u32,
+            visible: visible[i],
+            logic_ms: logic[i],
+            predicted_ms: predicted[i],
+            measured_ms: measured[i],
+        })
+        .collect();
     let summary_path = csv.with_extension("summary");
     let summary = std::fs::read_to_string(&summary_path).unwrap_or_default();
     let target_ms = summary
@@ -249,13 +241,7 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
         bevy::text::DEFAULT_FONT_DATA,
     )
     .map_err(|_| "the embedded font did not load")?;
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(raw)
-        .map_err(|e| format!("{}: {e}", raw.display()))?
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "csv"))
-        .collect();
-    paths.sort();
+    let paths = record::csv_files(raw)?;
     let mut runs = Vec::new();
     for p in &paths {
         if let Some(run) = read_run(p)? {

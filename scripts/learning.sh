@@ -27,19 +27,9 @@ target_dir=${CARGO_TARGET_DIR:-target}
 cargo build --release --example forest --example cost_report
 forest="$target_dir/release/examples/forest"
 
-run() {
-    local name=$1
-    shift
-    if [[ -f "$RAW/$name.csv" ]]; then
-        return
-    fi
-    echo "== $name: $*"
-    "$forest" --headless --warmup 0 --summary --record "$RAW/$name.csv.part" "$@" \
-        > "$RAW/$name.summary.part"
-    cat "$RAW/$name.summary.part"
-    mv "$RAW/$name.summary.part" "$RAW/$name.summary"
-    mv "$RAW/$name.csv.part" "$RAW/$name.csv"
-}
+source "$(dirname "$0")/lib/runs.sh"
+# Frame 0 is the first frame drawn: the learning is recorded from its start.
+common=(--trees "$SIZE" --warmup 0 --no-wind)
 
 # The frame (path index) of a run's largest measured frame time.
 busiest() {
@@ -54,12 +44,12 @@ peak() {
 }
 
 for path in $PATHS; do
-    run "$SIZE-$path-unlimited" --trees "$SIZE" --path "$path" --mode unlimited --no-wind
+    run "$SIZE-$path-unlimited" "${common[@]}" --path "$path" --mode unlimited
 done
 hold=$(busiest "$RAW/$SIZE-linear-unlimited.csv")
 for mode in unlimited static; do
-    run "$SIZE-linear-$mode-hold$hold" --trees "$SIZE" --path linear --hold-frame "$hold" \
-        --frames "$HOLD_FRAMES" --mode "$mode" --no-wind
+    run "$SIZE-linear-$mode-hold$hold" "${common[@]}" --path linear --hold-frame "$hold" \
+        --frames "$HOLD_FRAMES" --mode "$mode"
 done
 for path in $PATHS; do
     top=$(peak "$RAW/$SIZE-$path-unlimited.csv")
@@ -67,13 +57,13 @@ for path in $PATHS; do
         for fraction in $FRACTIONS; do
             target=$(awk -v p="$top" -v f="$fraction" 'BEGIN { printf "%.1f", p * f }')
             for scale in $SCALES; do
-                run "$SIZE-$path-$mode-$fraction-x$scale" --trees "$SIZE" --path "$path" \
-                    --mode "$mode" --target-ms "$target" --scale-calibration "$scale" --no-wind
+                run "$SIZE-$path-$mode-$fraction-x$scale" "${common[@]}" --path "$path" \
+                    --mode "$mode" --target-ms "$target" --scale-calibration "$scale"
             done
         done
         target=$(awk -v p="$top" 'BEGIN { printf "%.1f", p * 0.75 }')
-        run "$SIZE-$path-$mode-0.75-x1" --trees "$SIZE" --path "$path" --mode "$mode" \
-            --target-ms "$target" --no-wind
+        run "$SIZE-$path-$mode-0.75-x1" "${common[@]}" --path "$path" --mode "$mode" \
+            --target-ms "$target"
     done
 done
 

@@ -39,18 +39,7 @@ paper_lengths="the paper lengths (linear 1100, zigzag 1700)"
 printf 'sizes: %s\npaths: %s\nfractions of the unlimited peak: %s\npath frames: %s\n' \
     "$SIZES" "$PATHS" "$FRACTIONS" "${PATH_FRAMES:-$paper_lengths}" > "$RAW/GRID"
 
-run() {
-    local name=$1
-    shift
-    if [[ -f "$RAW/$name.csv" ]]; then
-        return
-    fi
-    echo "== $name: $*"
-    "$forest" --headless --summary --record "$RAW/$name.csv.part" "$@" > "$RAW/$name.summary.part"
-    cat "$RAW/$name.summary.part"
-    mv "$RAW/$name.summary.part" "$RAW/$name.summary"
-    mv "$RAW/$name.csv.part" "$RAW/$name.csv"
-}
+source "$(dirname "$0")/lib/runs.sh"
 
 for size in $SIZES; do
     for path in $PATHS; do

@@ -1,6 +1,6 @@
 //! The forest example's `--record` files, read back by column name.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A record: its columns' names and one row of numbers per frame (an empty or unreadable
 /// cell is NaN).
@@ -43,4 +43,16 @@ impl Record {
             .map(|row| row.get(c).copied().unwrap_or(f64::NAN))
             .collect())
     }
+}
+
+/// The `*.csv` files of `dir`, sorted.
+pub fn csv_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "csv"))
+        .collect();
+    paths.sort();
+    Ok(paths)
 }

@@ -218,20 +218,9 @@ impl RobinHood {
             let portion = remaining * share; // P-2
             remaining -= portion; // P-3
             let given = (floor_of(i) + portion).min(f64::from(f32::MAX)) as f32;
-            let chosen = fit(i, given);
-            let used = if chosen.used.is_finite() {
-                chosen.used.max(0.0)
-            } else {
-                given
-            };
+            allocations[i] = offer(&mut fit, i, given);
             // Remainder back to the pot; an overrun is reported, not taken from others.
-            remaining += f64::from((given - used).max(0.0));
-            allocations[i] = Allocation {
-                given,
-                used,
-                level: Some(chosen.level),
-                truncated: chosen.truncated,
-            };
+            remaining += f64::from((given - allocations[i].used).max(0.0));
         }
         // The residue, again, to the objects still below their best.
         for _ in 0..RESIDUE_PASSES {
@@ -265,18 +254,11 @@ impl RobinHood {
                 }
                 remaining -= portion;
                 let given = (f64::from(before.used) + portion).min(f64::from(f32::MAX)) as f32;
-                let chosen = fit(i, given);
-                let used = if chosen.used.is_finite() {
-                    chosen.used.max(0.0)
-                } else {
-                    given
-                };
-                remaining += f64::from((given - used).max(0.0));
+                let after = offer(&mut fit, i, given);
+                remaining += f64::from((given - after.used).max(0.0));
                 allocations[i] = Allocation {
-                    given,
-                    used,
-                    level: Some(chosen.level),
-                    truncated: chosen.truncated && before.truncated,
+                    truncated: after.truncated && before.truncated,
+                    ..after
                 };
             }
         }
@@ -305,6 +287,22 @@ impl RobinHood {
         self.order.extend(0..n as u32);
         self.order
             .sort_by(|&a, &b| key(a as usize).total_cmp(&key(b as usize)));
+    }
+}
+
+/// What object `i` does with `given` seconds, as an allocation: a time it reports that is
+/// not finite counts as all it was given.
+fn offer(fit: &mut impl FnMut(usize, f32) -> Fit, i: usize, given: f32) -> Allocation {
+    let chosen = fit(i, given);
+    Allocation {
+        given,
+        used: if chosen.used.is_finite() {
+            chosen.used.max(0.0)
+        } else {
+            given
+        },
+        level: Some(chosen.level),
+        truncated: chosen.truncated,
     }
 }
 

@@ -234,9 +234,8 @@ pub fn trunk_tclod(
     let time = time.max(0.0);
     let area = trunk_cost_area(model, px, costs);
     // Full detail whenever the time pays for it: the search only runs below (thesis §6.5).
-    // Full detail costs at least the static LOD's representation (lines are cheaper than
-    // the triangles they replace) and the thickest segment's triangles, so it is tried
-    // only once those fit: far trees, the many, skip it.
+    // A trunk too thin to see (most trees of a large forest) tries it only once its
+    // thickest segment's triangles fit, which full detail includes.
     let full = |out: &mut TreeDrawList| {
         let cost = trunk_triangle_cost(model, costs, 0, area);
         (cost <= time).then(|| {
@@ -298,10 +297,12 @@ pub fn trunk_tclod(
     let cost_of = |runs: &[LineRun], dropped: u32, k: u32| {
         lines_cost(runs, dropped, model, costs, px, k) + triangles(k)
     };
-    let static_fits = cost_of(&out.trunk_lines, drawn, static_k) <= time;
-    if static_fits && let Some(full) = full(out) {
+    // (Lines covering a screenful each can cost more than the whole trunk's triangles,
+    // which cover it once: full detail is tried whatever the lines cost.)
+    if let Some(full) = full(out) {
         return full;
     }
+    let static_fits = cost_of(&out.trunk_lines, drawn, static_k) <= time;
     let runs = &out.trunk_lines;
     let cost = |dropped: u32, k: u32| cost_of(runs, dropped, k);
     let smallest = |mut lo: u32, mut hi: u32, fits: &dyn Fn(u32) -> bool| {
@@ -503,14 +504,7 @@ pub fn leaves(
 ) -> Selected {
     out.leaf_triangles.clear();
     out.leaf_points.clear();
-    let mut area_left: f32 = groups
-        .iter()
-        .map(|g| {
-            let n = model.leaf_groups[g.group as usize].leaves.len() as u32;
-            group_area(model, view, n, g.depth)
-        })
-        .filter(|a| a.is_finite())
-        .sum();
+    let mut area_left = leaves_area(model, view, groups);
     let leaf_cost = LeafTriangles::of(model, costs, area_left);
     let time = time.max(0.0);
     // Full detail whenever the time pays for it: the search only runs below (thesis §6.5).
@@ -584,6 +578,13 @@ pub fn leaves(
     total
 }
 
+/// The projected area of the visible groups' leaves together, pixels.
+fn leaves_area(model: &TreeModel, view: &TreeView, groups: &[VisibleGroup]) -> f32 {
+    groups_with_leaves(model, view, groups)
+        .map(|(_, area)| area)
+        .sum()
+}
+
 /// Per visible group with leaves, its leaf count and projected area.
 fn groups_with_leaves<'a>(
     model: &'a TreeModel,
@@ -635,15 +636,7 @@ pub fn leaves_floor(
     method: LeafMethod,
     groups: &[VisibleGroup],
 ) -> f32 {
-    let tree_area: f32 = groups
-        .iter()
-        .map(|g| {
-            let n = model.leaf_groups[g.group as usize].leaves.len() as u32;
-            group_area(model, view, n, g.depth)
-        })
-        .filter(|a| a.is_finite())
-        .sum();
-    let leaf_cost = LeafTriangles::of(model, costs, tree_area);
+    let leaf_cost = LeafTriangles::of(model, costs, leaves_area(model, view, groups));
     let each = || group_leaf_costs(model, view, costs, &leaf_cost, groups);
     let full: f32 = each().map(|(n, leaf)| leaf * n as f32).sum();
     match method {
