@@ -97,6 +97,10 @@ The record (--record) has one row per measured frame, times in ms:
                          every visible object's cheapest representation together, and
                          how far it exceeds the rendering time
   pass_ms                the forest pass's GPU timestamps, when available
+  drawn                  primitives the forest pass drew in the frame rendered last
+  cal_triangles_ms, cal_triangle_pixels_ms, cal_lines_ms, cal_points_ms
+                         the selection's rendering by family as the calibration alone
+                         prices it: what the cost model learns from
   render_speed, logic_speed
                          how much slower than its learned costs the machine runs now
   triangle_us, triangle_pixel_ns, line_us, point_us
@@ -282,6 +286,12 @@ fn parse(args: &[String]) -> Result<Options, String> {
     if o.hold_frame.is_some() && o.path.is_none() {
         return Err("--hold-frame needs --path".into());
     }
+    if o.trees == Some(0) {
+        return Err("--trees must be positive".into());
+    }
+    if o.frames == Some(0) {
+        return Err("--frames must be positive: a run measures at least one frame".into());
+    }
     if o.path_frames == Some(0) {
         return Err("--path-frames must be positive".into());
     }
@@ -304,6 +314,8 @@ struct Row {
     /// The forest pass's GPU time, when timestamps are available (arrives a frame or two
     /// late).
     pass_ms: Option<f64>,
+    /// What the forest pass drew in the frame rendered last when the measurement arrived.
+    drawn: u64,
 }
 
 /// The run's state.
@@ -312,15 +324,18 @@ struct Run {
     /// Frames since the forest was drawn for the first time.
     frame: u32,
     rows: Vec<Row>,
-    /// Selections waiting for their frame's measurement: (the cost model's frame number,
-    /// measured frame index, diagnostics).
-    pending: std::collections::VecDeque<(u64, u32, LodDiagnostics)>,
+    /// Frames waiting for their measurement: (the cost model's frame number, measured
+    /// frame index).
+    pending: std::collections::VecDeque<(u64, u32)>,
+    /// The LOD stages' figures of recent frames (a frame's arrive in the next frame's
+    /// `Update`, its measurement a frame or two later).
+    diagnostics: std::collections::VecDeque<LodDiagnostics>,
     image: Option<Handle<Image>>,
 }
 
 fn main() -> AppExit {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let options = match parse(&args) {
+    let mut options = match parse(&args) {
         Ok(o) => o,
         Err(message) => {
             if message.is_empty() {
@@ -331,6 +346,21 @@ fn main() -> AppExit {
             return AppExit::error();
         }
     };
+    // The record is written at the end: find out now that it cannot be.
+    if let Some(file) = &options.record
+        && let Err(e) = std::fs::File::create(file)
+    {
+        eprintln!("forest: --record {file}: {e}");
+        return AppExit::error();
+    }
+    if !options.headless && !has_display() {
+        eprintln!(
+            "forest: no display (neither DISPLAY nor WAYLAND_DISPLAY is set): rendering headless along the linear path and printing a summary; use xvfb-run for a window"
+        );
+        options.headless = true;
+        options.path.get_or_insert(CameraPath::Linear);
+        options.summary = true;
+    }
     let mut app = App::new();
     let window = WindowPlugin {
         primary_window: (!options.headless).then(|| Window {
@@ -399,6 +429,7 @@ fn main() -> AppExit {
             Update,
             (
                 stop_when_no_species_loads,
+                give_up_when_nothing_is_drawn,
                 scale_calibration,
                 keys,
                 fly,
@@ -480,6 +511,17 @@ fn setup(
     }
     if let Some(seed) = options.seed {
         desc.seed = seed;
+    }
+    // Refused now, rather than by the forest's layout later with nothing drawn.
+    if let Err(e) = desc.validate() {
+        eprintln!("forest: {path}: {e}");
+        exit.write(AppExit::error());
+        return;
+    }
+    if desc.instance_count() == 0 {
+        eprintln!("forest: {path}: every species has 0 trees: nothing to draw");
+        exit.write(AppExit::error());
+        return;
     }
     let size = desc.terrain.size;
     commands.spawn(Forest(ecosystems.add(Ecosystem(desc))));
@@ -702,19 +744,29 @@ fn measure(
         return;
     }
     let run = &mut *run;
+    // Each row pairs a frame's selection (its diagnostics) with what was measured of that
+    // same frame.
+    if run.diagnostics.len() >= 16 {
+        run.diagnostics.pop_front();
+    }
+    run.diagnostics.push_back(lod.clone());
     for sample in samples.arrived() {
         while run.pending.front().is_some_and(|p| p.0 < sample.frame) {
             run.pending.pop_front();
         }
-        if run.pending.front().is_some_and(|p| p.0 == sample.frame)
-            && let Some((_, frame, diagnostics)) = run.pending.pop_front()
-        {
+        let diagnostics = run.diagnostics.iter().find(|d| d.frame == sample.frame);
+        if let (Some(&(_, frame)), Some(diagnostics)) = (
+            run.pending.front().filter(|p| p.0 == sample.frame),
+            diagnostics,
+        ) {
             run.rows.push(Row {
                 frame,
-                diagnostics,
+                diagnostics: diagnostics.clone(),
                 sample: *sample,
                 pass_ms: stats.gpu_time_ms,
+                drawn: stats.counts.triangles + stats.counts.lines + stats.counts.points,
             });
+            run.pending.pop_front();
         }
     }
     let index = run.frame;
@@ -737,23 +789,78 @@ fn measure(
         // The last frames' measurements are still in the pipeline: wait for them (a
         // few frames at most).
         if run.pending.is_empty() || limit.is_some_and(|n| measured >= n + 8) {
-            finish(&options, &run.rows);
-            exit.write(AppExit::Success);
+            exit.write(if finish(&options, &run.rows) {
+                AppExit::Success
+            } else {
+                AppExit::error()
+            });
         }
         return;
     }
-    run.pending.push_back((clock.frame, measured, lod.clone()));
+    run.pending.push_back((clock.frame, measured));
 }
 
-fn finish(options: &Options, rows: &[Row]) {
-    if let Some(file) = &options.record
-        && let Err(e) = write_csv(file, rows)
-    {
-        eprintln!("forest: {file}: {e}");
-    }
+/// Writes the record and the summary; false when the record could not be written.
+fn finish(options: &Options, rows: &[Row]) -> bool {
+    let written = match &options.record {
+        Some(file) => write_csv(file, rows)
+            .map_err(|e| eprintln!("forest: {file}: {e}"))
+            .is_ok(),
+        None => true,
+    };
     if options.summary {
         println!("{}", summary(options.target_ms, rows));
     }
+    written
+}
+
+/// Whether a window can open: on Linux and the BSDs, an X or Wayland display is named.
+fn has_display() -> bool {
+    if cfg!(any(
+        target_os = "linux",
+        target_os = "freebsd",
+        target_os = "openbsd"
+    )) {
+        std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some()
+    } else {
+        true
+    }
+}
+
+/// How long a run with a frame limit waits for its first drawn frame before it gives
+/// up, seconds: shaders compile within a few seconds even in a debug build.
+const FIRST_FRAME_TIMEOUT_SECS: f32 = 30.0;
+
+/// A run that is to measure frames but never draws the forest (no tree in view, an
+/// ecosystem refused, models that failed) would otherwise wait forever: say why and stop.
+fn give_up_when_nothing_is_drawn(
+    options: Res<Options>,
+    run: Res<Run>,
+    time: Res<Time<Real>>,
+    lod: Res<LodDiagnostics>,
+    stats: Res<ForestRenderStats>,
+    instances: Query<(), With<TreeInstance>>,
+    mut exit: MessageWriter<AppExit>,
+    mut reported: Local<bool>,
+) {
+    let measuring = options.path.is_some() || options.frames.is_some();
+    if !measuring || run.frame > 0 || *reported || time.elapsed_secs() < FIRST_FRAME_TIMEOUT_SECS {
+        return;
+    }
+    let trees = instances.iter().count();
+    let why = if trees == 0 {
+        "no tree was spawned (see the errors above)".to_owned()
+    } else if lod.visible_instances == 0 {
+        format!("none of the {trees} trees is in view")
+    } else {
+        format!(
+            "{} of the {trees} trees are in view but the pass drew {} (pipelines still compiling?)",
+            lod.visible_instances, stats.instances
+        )
+    };
+    eprintln!("forest: nothing was drawn in {FIRST_FRAME_TIMEOUT_SECS} s: {why}");
+    *reported = true;
+    exit.write(AppExit::error());
 }
 
 /// The record's columns: name and how a row writes it.
@@ -782,6 +889,19 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("floor_excess_ms", |r| ms(r.diagnostics.floor_excess_ms)),
     ("pass_ms", |r| {
         r.pass_ms.map_or(String::new(), |t| ms(t as f32))
+    }),
+    ("drawn", |r| r.drawn.to_string()),
+    ("cal_triangles_ms", |r| {
+        ms(r.diagnostics.calibrated.triangles * 1000.0)
+    }),
+    ("cal_triangle_pixels_ms", |r| {
+        ms(r.diagnostics.calibrated.triangle_pixels * 1000.0)
+    }),
+    ("cal_lines_ms", |r| {
+        ms(r.diagnostics.calibrated.lines * 1000.0)
+    }),
+    ("cal_points_ms", |r| {
+        ms(r.diagnostics.calibrated.points * 1000.0)
     }),
     ("render_speed", |r| {
         ratio(r.diagnostics.learned.render_speed)

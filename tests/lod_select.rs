@@ -263,15 +263,37 @@ fn a_tree_at_the_camera_fills_the_screen_once() {
     let mut list = TreeDrawList::default();
     let full = leaves(&model, &v, &costs, LeafMethod::Full, &g, 0.0, &mut list);
     let trunk = trunk_tc(&model, &v, &costs, f32::INFINITY, &mut list);
-    // Together, a trunk's triangles fill the screen once, as do the tree's leaves.
-    let screenful =
-        |triangles: usize| triangles as f32 * costs.triangle + costs.triangle_pixel * viewport;
     assert!(full.cost.is_finite() && trunk.cost.is_finite());
-    assert!(full.cost <= screenful(model.leaf_triangle_count()) * 1.0001);
-    assert!(trunk.cost <= screenful(model.trunk_triangle_count()) * 1.0001);
-    // And the time it takes is the per-triangle time plus one screen's fill, not the
-    // triangle count's worth of screens.
-    assert!(full.cost >= screenful(model.leaf_triangle_count()) * 0.5);
+    // The fill: the same trees priced with fill free, subtracted.
+    let mut no_fill = Calibration::default();
+    no_fill.triangles.per_pixel = 0.0;
+    let vertices_only = PrimitiveCosts::from_calibration(&no_fill, 1.0).within_viewport(viewport);
+    let leaf_fill = full.cost
+        - leaves(
+            &model,
+            &v,
+            &vertices_only,
+            LeafMethod::Full,
+            &g,
+            0.0,
+            &mut list,
+        )
+        .cost;
+    let trunk_fill =
+        trunk.cost - trunk_tc(&model, &v, &vertices_only, f32::INFINITY, &mut list).cost;
+    // Together, a trunk's triangles fill the screen once, as do the tree's leaves: the
+    // fill is one screen's, not the triangle count's worth of screens.
+    let screen = Calibration::default().triangles.per_pixel * viewport;
+    for (part, fill) in [("leaves", leaf_fill), ("trunk", trunk_fill)] {
+        assert!(
+            fill <= screen * 1.001,
+            "{part}: {fill} s of fill, a screen is {screen} s"
+        );
+        assert!(
+            fill >= screen * 0.5,
+            "{part}: {fill} s of fill, a screen is {screen} s"
+        );
+    }
     let uncapped = leaves(&model, &v, &unbounded, LeafMethod::Full, &g, 0.0, &mut list);
     assert!(
         uncapped.cost > 100.0 * full.cost,

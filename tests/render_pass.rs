@@ -648,3 +648,46 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
     // 0.5 m at 6 m with a 45° field of view is about 26 pixels.
     assert!(shift > 15.0, "the top moved {shift:.1} px");
 }
+
+/// Forty trees, each drawing all four primitive kinds with its own widths and sizes: still
+/// one instanced draw per kind, whatever the number of trees.
+#[test]
+fn many_trees_in_every_primitive_kind_take_four_draws() {
+    let model = species("slender");
+    let segments = model.segments.len() as u32;
+    let leaves = model.leaves.len() as u32;
+    let first_triangle = model.segments.triangle_offsets[(segments / 2) as usize];
+    let total = model.trunk_triangle_count() as u32;
+    let (picture, stats) = render(
+        "forty_trees",
+        Vec3::new(0.0, 10.0, 36.0),
+        Vec3::new(0.0, 4.0, 0.0),
+        move |world| {
+            let handle = world.resource_mut::<Assets<TreeModel>>().add(model);
+            for i in 0..40_u32 {
+                let list = TreeDrawList {
+                    trunk_triangles: first_triangle..total,
+                    trunk_lines: vec![LineRun {
+                        segments: 0..segments / 2,
+                        width: 1 + i % 4,
+                    }],
+                    leaf_triangles: std::iter::once(0..leaves / 2).collect(),
+                    leaf_points: vec![PointRun {
+                        leaves: leaves / 2..leaves,
+                        size: 1 + i % 3,
+                    }],
+                };
+                let at = Vec3::new((i % 8) as f32 * 3.0 - 10.5, 0.0, -((i / 8) as f32) * 3.0);
+                world.spawn((
+                    TreeInstance::standalone(handle.clone()),
+                    Transform::from_translation(at),
+                    list,
+                ));
+            }
+        },
+    );
+    assert_eq!(stats.instances, 40, "{stats:?}");
+    assert_eq!(stats.draw_calls_per_view, 4, "{stats:?}");
+    assert!(stats.chunks.iter().all(|&c| c > 4), "{stats:?}");
+    assert!(picture.coverage() > 1000, "{} pixels", picture.coverage());
+}

@@ -13,6 +13,11 @@ use bevy_sherwood::tree::*;
 /// in a `.glb` whose trunk node is moved by `offset` and whose leaf material is named
 /// `leaf_material`.
 fn glb(offset: Vec3, leaf_material: &str) -> Vec<u8> {
+    edited_glb(offset, leaf_material, |json| json)
+}
+
+/// [`glb`] with its JSON chunk passed through `edit` first.
+fn edited_glb(offset: Vec3, leaf_material: &str, edit: impl FnOnce(String) -> String) -> Vec<u8> {
     let mut trunk_positions = Vec::new();
     for (y, r) in [(-0.5_f32, 0.3_f32), (1.0, 0.2), (2.0, 0.1)] {
         for j in 0..4 {
@@ -82,7 +87,7 @@ fn glb(offset: Vec3, leaf_material: &str) -> Vec<u8> {
         view_json.join(","),
         bin.len()
     );
-    let mut json = json.into_bytes();
+    let mut json = edit(json).into_bytes();
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
@@ -195,4 +200,139 @@ fn tree_glb_files_load_through_the_asset_server() {
         .unwrap();
     assert_eq!(model.rings.len(), 3);
     let _ = std::fs::remove_dir_all(dir);
+}
+
+/// Files that break what glTF promises get an error naming the mesh and accessor, never
+/// a panic inside the `gltf` crate (whose readers assume a valid file).
+#[test]
+fn malformed_accessors_are_errors_not_panics() {
+    let settings = GltfTreeSettings::default();
+    let none = HashMap::new();
+    let import = |edit: &dyn Fn(String) -> String| {
+        import_gltf(&edited_glb(Vec3::ZERO, "leaf", edit), &settings, &none)
+    };
+    let cases: [(&str, &dyn Fn(String) -> String); 6] = [
+        // Float indices: the gltf crate's index reader hits `unreachable!` on them.
+        ("float indices", &|j| {
+            j.replacen(
+                r#""componentType":5123,"count":48"#,
+                r#""componentType":5126,"count":48"#,
+                1,
+            )
+        }),
+        // No vertices: its readers compute `count - 1`.
+        ("no vertices", &|j| {
+            j.replacen(r#""count":12"#, r#""count":0"#, 1)
+        }),
+        // Fewer vertices than the indices name.
+        ("indices past the vertices", &|j| {
+            j.replacen(r#""count":12"#, r#""count":8"#, 1)
+        }),
+        // An accessor running past its buffer view.
+        ("past the view", &|j| {
+            j.replacen(
+                r#"{"bufferView":0,"#,
+                r#"{"bufferView":0,"byteOffset":120,"#,
+                1,
+            )
+        }),
+        // Positions of the wrong type.
+        ("integer positions", &|j| {
+            j.replacen(
+                r#""componentType":5126,"count":12"#,
+                r#""componentType":5123,"count":12"#,
+                1,
+            )
+        }),
+        // A scene with nothing in it.
+        ("empty scene", &|j| {
+            j.replacen(
+                r#""scenes":[{"nodes":[0,1]}]"#,
+                r#""scenes":[{"nodes":[]}]"#,
+                1,
+            )
+        }),
+    ];
+    for (case, edit) in cases {
+        let probe = edited_glb(Vec3::ZERO, "leaf", edit);
+        assert_ne!(
+            probe,
+            glb(Vec3::ZERO, "leaf"),
+            "{case}: the edit changed nothing"
+        );
+        let error = import(edit)
+            .err()
+            .unwrap_or_else(|| panic!("{case}: imported"));
+        let message = error.to_string();
+        match case {
+            "indices past the vertices" => {
+                assert!(
+                    matches!(error, GltfTreeError::IndexOutOfRange { .. }),
+                    "{case}: {message}"
+                );
+            }
+            "empty scene" => assert!(
+                matches!(error, GltfTreeError::NoMeshes),
+                "{case}: {message}"
+            ),
+            // The gltf crate's own validation may catch some first; either way an error.
+            _ => match error {
+                GltfTreeError::Accessor { .. } => {
+                    assert!(message.contains("Bark"), "{case}: {message}");
+                }
+                GltfTreeError::Gltf(_) => {}
+                other => panic!("{case}: {other}"),
+            },
+        }
+    }
+}
+
+/// A buffer URI that leaves the file's folder would read any file on the machine as
+/// geometry: refused before anything is read.
+#[test]
+fn buffer_uris_outside_the_folder_are_refused() {
+    let gltf = |uri: &str| {
+        format!(r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"byteLength":12,"uri":"{uri}"}}]}}"#)
+            .into_bytes()
+    };
+    for uri in [
+        "../secret.bin",
+        "trees/../../secret.bin",
+        "%2e%2e/secret.bin",
+        "/etc/passwd",
+        "file:///etc/passwd",
+        "C:/Windows/win.ini",
+        r"..\\secret.bin",
+    ] {
+        assert!(
+            matches!(
+                external_buffer_uris(&gltf(uri)),
+                Err(GltfTreeError::UnsafeUri { .. })
+            ),
+            "{uri} was accepted"
+        );
+    }
+    for uri in ["tree.bin", "buffers/tree.bin", "a%20b.bin"] {
+        assert_eq!(
+            external_buffer_uris(&gltf(uri)).unwrap(),
+            vec![uri.to_owned()]
+        );
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(common::fuzz::cases()))]
+
+    /// A damaged `.glb` (bytes changed, JSON numbers replaced by extreme values) is an
+    /// error or a valid model, never a panic.
+    #[test]
+    fn mutated_glb_files_import_valid_or_fail(
+        m in proptest::collection::vec(common::fuzz::mutation(), 1..6)
+    ) {
+        let bytes = common::fuzz::mutate(&glb(Vec3::ZERO, "leaf"), &m);
+        if let Ok(analysis) = import_gltf(&bytes, &GltfTreeSettings::default(), &HashMap::new()) {
+            let valid = analysis.model.validate();
+            proptest::prop_assert!(valid.is_ok(), "{:?}", valid.err());
+        }
+    }
 }

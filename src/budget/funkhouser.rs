@@ -608,15 +608,26 @@ mod tests {
         assert_eq!(out[0].level, Some(1));
     }
 
-    /// Found by the property tests: the published ranking plus the single-tuple fix falls
-    /// below half the optimum; the hull ranking does not.
+    /// The published ranking (tuples by their own benefit over cost), even with the
+    /// single-tuple fix, can fall below half the optimum; the hull ranking does not.
     #[test]
     fn published_ranking_is_not_half_optimal_but_hull_ranking_is() {
+        // (The instance this test had before reached the optimum with either ranking;
+        // this one was found by a random search.)
         let p = problem(&[
-            &[(0.711_652_2, 8.202_608), (0.593_043_45, 7.812_008)],
-            &[(1.675_571_8, 23.3885), (0.577_285_9, 10.528_939)],
+            &[
+                (0.896_944_6, 5.075_413_7),
+                (0.788_578_5, 6.216_793_5),
+                (0.366_073_16, 1.339_150_2),
+            ],
+            &[(2.546_023_1, 16.921_751), (0.750_023_37, 8.113_423)],
+            &[
+                (2.325_558_4, 24.441_18),
+                (1.804_233_7, 4.067_466_3),
+                (0.980_119_9, 7.656_532),
+            ],
         ]);
-        let budget = 1.7;
+        let budget = 2.180_679;
         let optimum = crate::budget::oracle::optimal_selection(&p, budget)
             .unwrap()
             .benefit;
@@ -630,7 +641,10 @@ mod tests {
         FunkhouserSequin::new().distribute(&p, budget, &mut out);
         let hull_benefit = p.benefit_of(&out);
         assert!(hull_benefit >= 0.5 * optimum, "{hull_benefit} vs {optimum}");
-        assert!(published_benefit <= hull_benefit);
+        assert!(
+            published_benefit < 0.5 * optimum,
+            "the published ranking reaches {published_benefit} of {optimum}"
+        );
     }
 
     #[test]

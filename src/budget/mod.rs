@@ -48,6 +48,8 @@ pub use problem::{
     Allocation, BudgetInputError, BudgetProblem, BudgetStats, BudgetStrategy, Level, ObjectDesc,
     PreviousSelection,
 };
-pub use robin_hood::{Fit, LadderCosts, RobinHood, fit_continuous, fit_ladder};
+pub use robin_hood::{
+    Fit, LadderCosts, RESIDUE_FRACTION, RESIDUE_PASSES, RobinHood, fit_continuous, fit_ladder,
+};
 pub use triangle_budget::TriangleBudget;
 pub use value::{MIN_DEPTH, ValueFunction, ValueInputs, ValueModel, finite_value};

@@ -6,21 +6,7 @@
 //! is ever dropped: one whose cheapest representation does not fit its share is drawn
 //! time-critically (truncated).
 //!
-//! **The floors are paid first** (a deviation from the paper, which hands out the whole
-//! rendering time by value): since every visible object draws at least its cheapest
-//! representation, those costs are taken off the rendering time before the hand-out, and
-//! each object receives its floor plus its share of the rest. Without it, objects of low
-//! value are given less than their cheapest representation, draw it anyway, and the
-//! frame overruns by the sum of those differences. When even the floors do not fit, every
-//! object gets its floor and the excess is reported ([`BudgetStats::floor_excess`]).
-//!
-//! **The remainder is handed out again** (the paper suggests spending it on quality): an
-//! object visited early may be given less than its full detail while the objects after it
-//! cannot use all of theirs, and what they leave comes back at the end with nobody left
-//! to take it. When that residue is more than [`RESIDUE_FRACTION`] of the rendering time,
-//! it is shared again by value among the objects still below their best representation
-//! (level 0), simple → complex, each searching again with what it used plus its share;
-//! up to [`RESIDUE_PASSES`] times.
+//! See [`RobinHood`] for the two ways it departs from the paper.
 
 use super::problem::{Allocation, BudgetProblem, BudgetStats, BudgetStrategy, sanitize_time};
 
@@ -143,6 +129,22 @@ pub const RESIDUE_FRACTION: f64 = 0.01;
 pub const RESIDUE_PASSES: u32 = 3;
 
 /// The Robin Hood strategy. Keeps scratch buffers between frames, so reuse one value.
+///
+/// **The floors are paid first** (a deviation from the paper, which hands out the whole
+/// rendering time by value): since every visible object draws at least its cheapest
+/// representation, those costs are taken off the rendering time before the hand-out, and
+/// each object receives its floor plus its share of the rest. Without it, objects of low
+/// value are given less than their cheapest representation, draw it anyway, and the
+/// frame overruns by the sum of those differences. When even the floors do not fit, every
+/// object gets its floor and the excess is reported ([`BudgetStats::floor_excess`]).
+///
+/// **The remainder is handed out again** (the paper suggests spending it on quality): an
+/// object visited early may be given less than its full detail while the objects after it
+/// cannot use all of theirs, and what they leave comes back at the end with nobody left
+/// to take it. When that residue is more than [`RESIDUE_FRACTION`] of the rendering time,
+/// it is shared again by value among the objects still below their best representation
+/// (level 0), simple → complex, each searching again with what it used plus its share;
+/// up to [`RESIDUE_PASSES`] times.
 #[derive(Clone, Debug, Default)]
 pub struct RobinHood {
     order: Vec<u32>,
@@ -160,7 +162,7 @@ impl RobinHood {
     /// `i`, and `fit(i, time)` says what object `i` does with `time` seconds — a ladder
     /// search ([`fit_ladder`]), a continuous form ([`fit_continuous`]) or anything else.
     /// `floors[i]` is the cost of object `i`'s cheapest representation (what `fit(i, 0)`
-    /// uses): paid before the hand-out (see the [module docs](self)).
+    /// uses): paid before the hand-out (see [`RobinHood`]).
     ///
     /// Objects are visited in ascending complexity (ties keep input order). If the
     /// complexities are already sorted — objects grouped by pre-sorted type — this costs

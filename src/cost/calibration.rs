@@ -180,6 +180,13 @@ impl Default for Calibration {
     }
 }
 
+/// The most a calibration's fixed or logic time may be, seconds: a frame of ten seconds
+/// is a stopped machine, not a cost.
+pub const MAX_FIXED_SECONDS: f32 = 10.0;
+
+/// The most one primitive (or one pixel of it) may cost, seconds.
+pub const MAX_PRIMITIVE_SECONDS: f32 = 0.01;
+
 /// Why a calibration file was refused.
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrationError {
@@ -199,21 +206,59 @@ impl Calibration {
         for table in &mut calibration.logic {
             *table = LogicTable::new(table.target_ms, core::mem::take(&mut table.samples));
         }
-        let costs = core::iter::once(&calibration.triangles)
-            .chain(&calibration.lines)
-            .chain(&calibration.points);
-        for (i, c) in costs.enumerate() {
-            let values = [c.fixed, c.per_primitive, c.per_pixel];
-            if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
+        // An empty family would make its primitives free.
+        for (field, costs) in [
+            ("lines", &calibration.lines),
+            ("points", &calibration.points),
+        ] {
+            if costs.is_empty() {
                 return Err(CalibrationError::Invalid(format!(
-                    "cost {i} (triangles, then lines, then points) has a negative or non-finite part"
+                    "{field}: needs at least one cost (width or size 1 first)"
                 )));
             }
         }
-        if !(calibration.render_fixed.is_finite() && calibration.render_fixed >= 0.0) {
-            return Err(CalibrationError::Invalid(
-                "render_fixed must be a finite, non-negative number of seconds".into(),
-            ));
+        let families = core::iter::once(("triangles".to_owned(), &calibration.triangles))
+            .chain(
+                calibration
+                    .lines
+                    .iter()
+                    .enumerate()
+                    .map(|(i, c)| (format!("lines[{i}]"), c)),
+            )
+            .chain(
+                calibration
+                    .points
+                    .iter()
+                    .enumerate()
+                    .map(|(i, c)| (format!("points[{i}]"), c)),
+            );
+        for (field, c) in families {
+            for (part, value, most) in [
+                ("fixed", c.fixed, MAX_FIXED_SECONDS),
+                ("per_primitive", c.per_primitive, MAX_PRIMITIVE_SECONDS),
+                ("per_pixel", c.per_pixel, MAX_PRIMITIVE_SECONDS),
+            ] {
+                if !(value.is_finite() && (0.0..=most).contains(&value)) {
+                    return Err(CalibrationError::Invalid(format!(
+                        "{field}.{part} is {value}: must be between 0 and {most} seconds"
+                    )));
+                }
+            }
+        }
+        if !(calibration.render_fixed.is_finite()
+            && (0.0..=MAX_FIXED_SECONDS).contains(&calibration.render_fixed))
+        {
+            return Err(CalibrationError::Invalid(format!(
+                "render_fixed must be between 0 and {MAX_FIXED_SECONDS} seconds"
+            )));
+        }
+        for table in &calibration.logic {
+            if let Some((n, t)) = table.samples.iter().find(|(_, t)| *t > MAX_FIXED_SECONDS) {
+                return Err(CalibrationError::Invalid(format!(
+                    "logic at {} ms: {t} s with {n} visible is more than {MAX_FIXED_SECONDS} seconds",
+                    table.target_ms
+                )));
+            }
         }
         Ok(calibration)
     }

@@ -10,6 +10,10 @@ use super::placement::{Angles, Tilt, place, tilt_from_normal};
 use super::terrain::{Terrain, TerrainDesc, TerrainError};
 use crate::rng::SplitMix64;
 
+/// The largest instance scale an ecosystem may ask for: a tree a thousand times its
+/// model's size.
+pub const MAX_SCALE: f32 = 1000.0;
+
 /// A Blinn-Phong material (thesis §3.1); colours are linear RGB.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -247,10 +251,13 @@ impl EcosystemDesc {
                 return Err(invalid(f("tree"), "names no tree asset"));
             }
             let (lo, hi) = s.scale;
-            if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
-                return Err(invalid(f("scale"), "must be (min, max) with 0 < min ≤ max"));
+            if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi && hi <= MAX_SCALE) {
+                return Err(invalid(
+                    f("scale"),
+                    format!("must be (min, max) with 0 < min ≤ max ≤ {MAX_SCALE}"),
+                ));
             }
-            if !s.max_head.is_finite() || s.max_head < 0.0 {
+            if !s.max_head.is_finite() || s.max_head < 0.0 || s.max_head > 3600.0 {
                 return Err(invalid(
                     f("max_head"),
                     "must be a non-negative number of degrees",
@@ -268,13 +275,23 @@ impl EcosystemDesc {
             material(f("leaf_material"), &s.leaf_material)?;
             for (k, inst) in s.instances.iter().enumerate() {
                 let g = |name: &str| format!("species[{i}].instances[{k}].{name}");
+                let extent = TerrainDesc::MAX_EXTENT;
                 if let Some((x, z)) = inst.position
-                    && !(x.is_finite() && z.is_finite())
+                    && !(x.is_finite() && z.is_finite() && x.abs() <= extent && z.abs() <= extent)
                 {
-                    return Err(invalid(g("position"), "must be finite"));
+                    return Err(invalid(
+                        g("position"),
+                        format!("must be finite and within ±{extent}"),
+                    ));
                 }
-                if inst.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
-                    return Err(invalid(g("scale"), "must be positive"));
+                if inst
+                    .scale
+                    .is_some_and(|s| !(s.is_finite() && s > 0.0 && s <= MAX_SCALE))
+                {
+                    return Err(invalid(
+                        g("scale"),
+                        format!("must be positive, at most {MAX_SCALE}"),
+                    ));
                 }
                 for (name, angle) in [
                     ("head", inst.head),

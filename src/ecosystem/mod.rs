@@ -10,8 +10,8 @@ mod terrain;
 mod terrain_material;
 
 pub use desc::{
-    EcosystemDesc, EcosystemError, EcosystemLayout, InstanceDesc, InstanceLayout, MaterialDesc,
-    SpeciesEntry,
+    EcosystemDesc, EcosystemError, EcosystemLayout, InstanceDesc, InstanceLayout, MAX_SCALE,
+    MaterialDesc, SpeciesEntry,
 };
 pub use placement::{Angles, Placement, Tilt, tilt_from_normal};
 pub use plugin::{

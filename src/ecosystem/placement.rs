@@ -78,7 +78,7 @@ pub fn place(
     let g = (total as f64).sqrt().ceil() as usize;
     let g = if g * g < total { g + 1 } else { g };
     let cells = g * g;
-    let mut free = vec![true; cells];
+    let mut free = FreeCells::new(cells);
     let mut placements = Vec::with_capacity(total);
     let margin = cell_margin.clamp(0.0, 0.49);
     let cell_size = terrain.size() / g.max(1) as f32;
@@ -91,22 +91,16 @@ pub fn place(
         for _ in 0..count {
             current += ideal + (f64::from(rng.unit()) - 0.5) * ideal;
             let mut cell = current as usize;
-            if cell < cells && !free[cell] {
-                cell = (cell..cells).find(|&c| free[c]).unwrap_or(cells);
+            if cell < cells && !free.is_free(cell) {
+                cell = free.first_free_from(cell).unwrap_or(cells);
             }
             if cell >= cells {
-                // Past the last cell: a random free one.
-                let remaining = free.iter().filter(|&&f| f).count();
+                // Past the last cell: a random free one (there is one: cells ≥ instances).
+                let remaining = free.remaining();
                 let pick = (rng.unit() * remaining as f32) as usize;
-                cell = free
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, f)| **f)
-                    .nth(pick.min(remaining - 1))
-                    .map(|(c, _)| c)
-                    .unwrap_or(0);
+                cell = free.nth(pick.min(remaining.saturating_sub(1))).unwrap_or(0);
             }
-            free[cell] = false;
+            free.take(cell);
             let (cx, cz) = ((cell % g) as f32, (cell / g) as f32);
             let x = (cx + margin + rng.unit() * (1.0 - 2.0 * margin)) * cell_size;
             let z = (cz + margin + rng.unit() * (1.0 - 2.0 * margin)) * cell_size;
@@ -118,4 +112,111 @@ pub fn place(
         }
     }
     placements
+}
+
+/// The grid's free cells, with "the first free cell from `c`" and "the `k`-th free cell"
+/// in O(log cells) (a Fenwick tree of free counts), so that placing n instances costs
+/// O(n log n) rather than a scan of the grid per instance: a million trees place in well
+/// under a second.
+struct FreeCells {
+    free: Vec<bool>,
+    /// Fenwick tree (1-based) of free counts.
+    tree: Vec<u32>,
+    remaining: usize,
+}
+
+impl FreeCells {
+    fn new(cells: usize) -> Self {
+        // Every cell free: each node counts the cells it covers, its lowest set bit.
+        let tree = (0..=cells).map(|i| (i & i.wrapping_neg()) as u32).collect();
+        Self {
+            free: vec![true; cells],
+            tree,
+            remaining: cells,
+        }
+    }
+
+    fn is_free(&self, cell: usize) -> bool {
+        self.free.get(cell).copied().unwrap_or(false)
+    }
+
+    fn remaining(&self) -> usize {
+        self.remaining
+    }
+
+    fn take(&mut self, cell: usize) {
+        if !self.is_free(cell) {
+            return;
+        }
+        self.free[cell] = false;
+        self.remaining -= 1;
+        let mut i = cell + 1;
+        while i < self.tree.len() {
+            self.tree[i] -= 1;
+            i += i & i.wrapping_neg();
+        }
+    }
+
+    /// Free cells before `cell`.
+    fn free_before(&self, cell: usize) -> usize {
+        let mut i = cell.min(self.free.len());
+        let mut count = 0;
+        while i > 0 {
+            count += self.tree[i] as usize;
+            i &= i - 1;
+        }
+        count
+    }
+
+    /// The `k`-th free cell (from 0) in cell order.
+    fn nth(&self, k: usize) -> Option<usize> {
+        if k >= self.remaining {
+            return None;
+        }
+        // Descend the tree: the largest prefix holding at most k free cells.
+        let (mut position, mut left) = (0, k);
+        let mut step = (self.tree.len()).next_power_of_two();
+        while step > 0 {
+            let next = position + step;
+            if next < self.tree.len() && (self.tree[next] as usize) <= left {
+                position = next;
+                left -= self.tree[next] as usize;
+            }
+            step /= 2;
+        }
+        Some(position)
+    }
+
+    /// The first free cell at or after `cell`.
+    fn first_free_from(&self, cell: usize) -> Option<usize> {
+        self.nth(self.free_before(cell))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn free_cells_answer_as_a_scan_would() {
+        let mut cells = FreeCells::new(37);
+        let mut plain = [true; 37];
+        let mut state = 7_u64;
+        for _ in 0..30 {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+            let c = (state >> 33) as usize % 37;
+            cells.take(c);
+            plain[c] = false;
+            for from in 0..37 {
+                let scan = (from..37).find(|&f| plain[f]);
+                assert_eq!(cells.first_free_from(from), scan, "from {from}");
+            }
+            let free: Vec<usize> = (0..37).filter(|&f| plain[f]).collect();
+            assert_eq!(cells.remaining(), free.len());
+            for (k, &f) in free.iter().enumerate() {
+                assert_eq!(cells.nth(k), Some(f));
+            }
+            assert_eq!(cells.nth(free.len()), None);
+        }
+    }
 }

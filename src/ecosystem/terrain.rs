@@ -141,10 +141,22 @@ fn basis(knots: &[f32], p: usize, count: usize, t: f32) -> (usize, Vec<f32>) {
 }
 
 impl TerrainDesc {
+    /// The most sample updates the faults may take (resolution² × iterations): seconds of
+    /// work, not hours.
+    pub const MAX_FAULT_WORK: u64 = 400_000_000;
+
+    /// The largest side, control height and fault amplitude, in world units: beyond a
+    /// million units single-precision positions lose the precision trees need, and far
+    /// beyond they overflow.
+    pub const MAX_EXTENT: f32 = 1_000_000.0;
+
     /// Checks shapes and ranges.
     pub fn validate(&self) -> Result<(), TerrainError> {
-        if !(self.size.is_finite() && self.size > 0.0) {
-            return Err(err("size", "must be a positive number"));
+        if !(self.size.is_finite() && self.size > 0.0 && self.size <= Self::MAX_EXTENT) {
+            return Err(err(
+                "size",
+                format!("must be a positive number up to {}", Self::MAX_EXTENT),
+            ));
         }
         if !(2..=4097).contains(&self.resolution) {
             return Err(err("resolution", "must be between 2 and 4097"));
@@ -174,9 +186,12 @@ impl TerrainDesc {
             .control_heights
             .iter()
             .flatten()
-            .any(|h| !h.is_finite())
+            .any(|h| !(h.is_finite() && h.abs() <= Self::MAX_EXTENT))
         {
-            return Err(err("control_heights", "must be finite numbers"));
+            return Err(err(
+                "control_heights",
+                format!("must be numbers within ±{}", Self::MAX_EXTENT),
+            ));
         }
         if let Some(w) = &self.weights
             && (w.len() != rows
@@ -204,11 +219,29 @@ impl TerrainDesc {
                 }
             }
         }
-        if !self.faults.amplitude.is_finite() || self.faults.amplitude < 0.0 {
-            return Err(err("faults.amplitude", "must be a non-negative number"));
+        if !(self.faults.amplitude.is_finite()
+            && (0.0..=Self::MAX_EXTENT).contains(&self.faults.amplitude))
+        {
+            return Err(err(
+                "faults.amplitude",
+                format!("must be a non-negative number up to {}", Self::MAX_EXTENT),
+            ));
         }
         if self.faults.iterations > 100_000 {
             return Err(err("faults.iterations", "must be at most 100000"));
+        }
+        // Every fault moves every sample: bounded work, whatever the two limits allow.
+        let work = u64::from(self.resolution).pow(2) * u64::from(self.faults.iterations);
+        if work > Self::MAX_FAULT_WORK {
+            return Err(err(
+                "faults.iterations",
+                format!(
+                    "{} faults over a {}² grid are {work} sample updates, more than {}: fewer faults or a lower resolution",
+                    self.faults.iterations,
+                    self.resolution,
+                    Self::MAX_FAULT_WORK
+                ),
+            ));
         }
         Ok(())
     }
@@ -257,6 +290,12 @@ impl TerrainDesc {
                 heights.push(self.surface_height(u, v));
             }
         }
+        if heights.iter().any(|h| !h.is_finite()) {
+            return Err(err(
+                "weights",
+                "the control heights and weights overflow together: a height is not finite",
+            ));
+        }
         let mut rng = SplitMix64::new(self.faults.seed ^ 0x00FA_0175);
         let iterations = self.faults.iterations;
         for k in 0..iterations {
@@ -275,6 +314,12 @@ impl TerrainDesc {
                     };
                 }
             }
+        }
+        if heights.iter().any(|h| !h.is_finite()) {
+            return Err(err(
+                "faults.amplitude",
+                "the faults add up to a height that is not finite",
+            ));
         }
         Ok(Terrain {
             size: self.size,

@@ -8,12 +8,15 @@
 //! * **Value**: for each visible instance ([`ForestCulling`]) the configured value
 //!   function of its trunk (at the trunk's area-density centre) and of its leaves (the sum
 //!   over its visible leaf groups, each at its own depth), times the part's importance.
-//! * **Budget**: the logic time from the cost model's logic table, the rendering time
-//!   from the frame-time model (P-5..P-7), less the fixed per-frame cost of the pass's
-//!   draws; then Robin Hood walks the objects simple → complex (object types are ranked
-//!   once when models change) and each object's search (see [`select`]) picks what fits
-//!   its share, the remainder passing on. The search runs inside the hand-out because a
-//!   remainder is only known once the object has chosen.
+//! * **Budget**: the logic time the cost model predicts for this many visible trees, the
+//!   rendering time that leaves in the target (the learned overlap of logic and
+//!   rendering, [`FrameOverlap`](crate::cost::FrameOverlap), replaces the paper's
+//!   P-5..P-7), less the rendering's fixed part; every object's cheapest representation
+//!   is paid first, then Robin Hood walks the objects simple → complex (object types are
+//!   ranked once when models change) and each object's search (see [`select`]) picks what
+//!   fits its floor plus its share, the remainder passing on; a residue left at the end is
+//!   handed out again to objects below full detail. The search runs inside the hand-out
+//!   because a remainder is only known once the object has chosen.
 //! * **Select**: the chosen draw lists are copied into the instances' components;
 //!   invisible instances get empty lists. In `Static` and `Unlimited` mode no time is
 //!   handed out and this stage does all the work.
@@ -167,6 +170,10 @@ pub struct LodDiagnostics {
     pub wasted_ms: f32,
     /// What the cost model has learned.
     pub learned: LearnedCosts,
+    /// The selection's rendering time by primitive family as the calibration alone prices
+    /// it, seconds: what the cost model learns from (with the measured times) once the
+    /// frame is measured.
+    pub calibrated: FamilyTimes,
     /// Predicted rendering time beyond the rendering time, ms: cheapest representations
     /// that did not fit (Robin Hood draws every visible object at least at its cheapest;
     /// the triangle budget never goes below them).
@@ -683,7 +690,7 @@ fn hand_out_time(
                 let method = if unlimited {
                     LeafMethod::Full
                 } else {
-                    LeafMethod::Static(budget.point_sizes.min.max(1))
+                    LeafMethod::Static(budget.point_sizes.sanitized().min)
                 };
                 predicted += take(tree_leaves(
                     m,
@@ -847,10 +854,11 @@ fn hand_out_time(
     };
     let render = fixed + predicted;
     let frame_time = overlap.frame_time(logic, render);
+    let calibrated = priced.unscaled(scales);
     cost_model.record(FramePrediction {
         frame: clock.frame,
         visible_instances,
-        calibrated: priced.unscaled(scales),
+        calibrated,
         logic,
         render,
         frame_time,
@@ -876,6 +884,7 @@ fn hand_out_time(
         floor_ms: floor * 1000.0,
         floor_excess_ms: floor_excess * 1000.0,
         learned: cost_model.learned(),
+        calibrated,
         counts,
         truncated,
         undrawn,

@@ -258,7 +258,7 @@ pub fn trunk_tclod(
         // segment stays, as the thinnest line, or as triangles when both fit — what the
         // searches below would choose for a single line.
         let thickest = n - 1..n;
-        let width = widths.min.max(1);
+        let width = widths.sanitized().min;
         let line = costs.lines(
             width,
             1,
@@ -409,7 +409,7 @@ pub fn trunk_floor(
         )
     };
     if drawn == n {
-        return thickest_line(widths.min.max(1));
+        return thickest_line(widths.sanitized().min);
     }
     let static_cost = lines + trunk_triangle_cost(model, costs, static_k, area);
     if static_cost <= 0.0 {
@@ -739,13 +739,13 @@ fn group_tc(
 /// The largest point size for `groups` groups projecting `area` pixels together: no
 /// point is larger than an average group on screen.
 fn largest_point(area: f32, groups: u32, sizes: PixelRange) -> u32 {
-    let min = sizes.min.max(1);
+    let PixelRange { min, max } = sizes.sanitized();
     let above_min = (min + 1) as f32;
     // A far tree's groups cover less than a point of the next size: no root to take.
     if area < above_min * above_min * groups as f32 {
         return min;
     }
-    ((area / groups.max(1) as f32).sqrt() as u32).clamp(min, sizes.max.max(min))
+    ((area / groups.max(1) as f32).sqrt() as u32).clamp(min, max)
 }
 
 /// What TCLOD draws of `n` leaves projecting `area` pixels, given `time`.
@@ -783,7 +783,7 @@ fn tclod_choice(
             },
         );
     }
-    let min = sizes.min.max(1);
+    let min = sizes.sanitized().min;
     let max = largest_point(area, groups, sizes);
     // (The whole cost, and its points' part.)
     let split_at = |size: u32| {

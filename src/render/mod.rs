@@ -17,7 +17,7 @@
 //! several cameras each view draws the same ranges, with its own line and point widths in
 //! its own pixels.
 
-mod calibrate;
+pub mod calibrate;
 mod hud;
 
 use std::sync::{Arc, Mutex};

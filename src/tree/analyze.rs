@@ -155,6 +155,10 @@ pub enum TreeAnalysisError {
         /// Its position.
         position: Vec3,
     },
+    /// The model built fails [`TreeModel::validate`]: the input had something the checks
+    /// above let through (a colour out of range), or the analysis has a bug.
+    #[error("the analysed model is inconsistent: {0}")]
+    Inconsistent(String),
 }
 
 /// Something odd but harmless that the analysis worked around.
@@ -260,6 +264,11 @@ pub fn analyze(
         options,
         &mut warnings,
     );
+    // One validation for every way a model enters: what the analysis builds is checked as
+    // a loaded file is (a colour out of range in the input, say, is caught here).
+    model
+        .validate()
+        .map_err(|e| TreeAnalysisError::Inconsistent(e.to_string()))?;
     Ok(TreeAnalysis { model, warnings })
 }
 
@@ -500,12 +509,8 @@ impl Hierarchy {
         };
         let positions = &mesh.positions;
 
-        // Root rings: components of the vertices at or below the ground.
-        let below: Vec<bool> = positions.iter().map(|p| p.y <= ground).collect();
-        if !below.iter().any(|&b| b) {
-            let lowest = positions.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-            return Err(TreeAnalysisError::NoRootRing { ground, lowest });
-        }
+        // Root rings: components of the vertices at or below the ground, among those a
+        // triangle uses (a stray vertex below the ground is no root).
         let used: Vec<bool> = {
             let mut u = vec![false; n];
             for t in &h.triangles {
@@ -515,6 +520,14 @@ impl Hierarchy {
             }
             u
         };
+        let below: Vec<bool> = positions.iter().map(|p| p.y <= ground).collect();
+        if !(0..n).any(|v| below[v] && used[v]) {
+            let lowest = (0..n)
+                .filter(|&v| used[v])
+                .map(|v| positions[v].y)
+                .fold(f32::INFINITY, f32::min);
+            return Err(TreeAnalysisError::NoRootRing { ground, lowest });
+        }
         let roots = components(
             (0..n as u32).filter(|&v| below[v as usize] && used[v as usize]),
             &adjacency,

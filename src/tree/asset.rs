@@ -119,6 +119,14 @@ impl TreeModel {
             self.leaves.len().max(1),
         )?;
         for (i, r) in self.rings.iter().enumerate() {
+            // Parents come first: the wind walks rings in order, each after its parent, and
+            // this also rules out cycles.
+            if r.parent != NO_RING && r.parent as usize >= i {
+                return Err(inconsistent(
+                    "rings",
+                    format!("ring {i} comes before its parent {}", r.parent),
+                ));
+            }
             if (r.parent != NO_RING && r.parent as usize >= rings)
                 || r.children.iter().any(|&c| c as usize >= rings)
                 || r.vertices.start > r.vertices.end
@@ -144,6 +152,67 @@ impl TreeModel {
             return Err(inconsistent("segments", "parallel arrays differ in length"));
         }
         in_range("segments.ring", &s.ring, rings)?;
+        let bad_number = |x: &f32| !x.is_finite() || *x < 0.0;
+        if let Some(i) = s
+            .line
+            .iter()
+            .position(|l| !l[0].is_finite() || !l[1].is_finite())
+        {
+            return Err(inconsistent(
+                "segments.line",
+                format!("segment {i} is not finite"),
+            ));
+        }
+        if let Some(i) = s.diameter.iter().position(bad_number) {
+            return Err(inconsistent(
+                "segments.diameter",
+                format!("segment {i} is negative or not finite"),
+            ));
+        }
+        if s.diameter.windows(2).any(|w| w[0] > w[1]) {
+            return Err(inconsistent(
+                "segments.diameter",
+                "segments must be sorted thin → thick",
+            ));
+        }
+        if s.cumulative_length.iter().any(bad_number)
+            || s.cumulative_length.windows(2).any(|w| w[0] > w[1])
+        {
+            return Err(inconsistent(
+                "segments.cumulative_length",
+                "must be finite and never fall",
+            ));
+        }
+        for (field, bounds) in [
+            ("bounds", &self.bounds),
+            ("trunk_bounds", &self.trunk_bounds),
+        ] {
+            if !bounds.min.is_finite()
+                || !bounds.max.is_finite()
+                || bounds.min.cmpgt(bounds.max).any()
+            {
+                return Err(inconsistent(field, "must be a finite box, min ≤ max"));
+            }
+        }
+        for (field, value) in [
+            ("mean_leaf_triangle_area", self.mean_leaf_triangle_area),
+            ("mean_trunk_triangle_area", self.mean_trunk_triangle_area),
+        ] {
+            if bad_number(&value) {
+                return Err(inconsistent(field, "must be finite and not negative"));
+            }
+        }
+        if !self.trunk_area_center.is_finite() {
+            return Err(inconsistent("trunk_area_center", "must be finite"));
+        }
+        for (field, color) in [
+            ("bark_color", self.bark_color),
+            ("leaf_color", self.leaf_color),
+        ] {
+            if color.iter().any(bad_number) {
+                return Err(inconsistent(field, "must be finite and not negative"));
+            }
+        }
         if s.triangle_offsets.windows(2).any(|w| w[0] > w[1])
             || s.triangle_offsets.first().is_some_and(|&o| o != 0)
             || s.triangle_offsets
@@ -160,6 +229,8 @@ impl TreeModel {
             if leaf.triangles.start > leaf.triangles.end
                 || leaf.triangles.end > leaf_triangles
                 || leaf.group as usize >= self.leaf_groups.len()
+                || !leaf.center.is_finite()
+                || !leaf.normal.is_finite()
             {
                 return Err(inconsistent(
                     "leaves",
@@ -171,7 +242,8 @@ impl TreeModel {
             if g.ring as usize >= rings
                 || g.leaves.start > g.leaves.end
                 || g.leaves.end as usize > self.leaves.len()
-                || !g.bounds.radius.is_finite()
+                || !g.bounds.center.is_finite()
+                || bad_number(&g.bounds.radius)
             {
                 return Err(inconsistent(
                     "leaf_groups",
@@ -236,7 +308,13 @@ impl TreeModel {
         if version != BINARY_VERSION {
             return Err(TreeFileError::Header(format!("file is version {version}")));
         }
-        let model: Self = postcard::from_bytes(&bytes[header..])?;
+        let (model, rest): (Self, _) = postcard::take_from_bytes(&bytes[header..])?;
+        if !rest.is_empty() {
+            return Err(TreeFileError::Header(format!(
+                "{} bytes after the model: the file is damaged or not one model",
+                rest.len()
+            )));
+        }
         model.validate()?;
         Ok(model)
     }
@@ -287,11 +365,18 @@ impl AssetLoader for TreeModelLoader {
         &self,
         reader: &mut dyn Reader,
         _settings: &(),
-        _load_context: &mut LoadContext<'_>,
+        load_context: &mut LoadContext<'_>,
     ) -> Result<TreeModel, TreeFileError> {
         let mut bytes = Vec::new();
         reader.read_to_end(&mut bytes).await?;
-        if bytes.starts_with(BINARY_MAGIC) {
+        // By the file's extension, so that a damaged binary file says what is wrong
+        // with it rather than that it is not text.
+        let binary = load_context
+            .path()
+            .path()
+            .to_string_lossy()
+            .ends_with(".tree.bin");
+        if binary || bytes.starts_with(BINARY_MAGIC) {
             TreeModel::from_binary(&bytes)
         } else {
             TreeModel::from_ron_str(core::str::from_utf8(&bytes)?)

@@ -45,6 +45,10 @@ pub enum GltfTreeError {
     /// The file is not valid glTF.
     #[error("not valid glTF: {0}")]
     Gltf(#[from] gltf::Error),
+    /// The file is so malformed that the `gltf` crate gave up on it (an index into an
+    /// array that is not there).
+    #[error("not valid glTF: {0}")]
+    Malformed(String),
     /// A buffer is missing (an external file not found, or an undecodable data URI).
     #[error("buffer {index} ({uri}) could not be read: {reason}")]
     Buffer {
@@ -69,11 +73,46 @@ pub enum GltfTreeError {
         /// The mesh's name.
         mesh: String,
     },
+    /// An accessor the importer reads is not what glTF allows there, or lies outside its
+    /// buffer.
+    #[error("mesh {mesh:?}: the {attribute} accessor {index} {reason}")]
+    Accessor {
+        /// The mesh's name.
+        mesh: String,
+        /// What it holds: `POSITION`, `NORMAL` or `indices`.
+        attribute: &'static str,
+        /// The accessor's index in the file.
+        index: usize,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An index names a vertex the primitive does not have.
+    #[error("mesh {mesh:?}: index {value} is past the primitive's {vertices} vertices")]
+    IndexOutOfRange {
+        /// The mesh's name.
+        mesh: String,
+        /// The index.
+        value: u32,
+        /// The primitive's vertex count.
+        vertices: usize,
+    },
+    /// The scene has no triangle primitive at all.
+    #[error("the scene has no mesh: nothing to make a tree of")]
+    NoMeshes,
     /// Nothing was classified as trunk.
     #[error("no trunk: every primitive's name matched a leaf keyword ({keywords:?})")]
     NoTrunk {
         /// The keywords used.
         keywords: Vec<String>,
+    },
+    /// An external buffer's URI leaves the folder the file is in (`..`), is absolute, or
+    /// names another scheme: only files beside the glTF file (or below it) are read.
+    #[error(
+        "buffer URI {uri:?} points outside the asset's folder; only relative paths below it are read"
+    )]
+    UnsafeUri {
+        /// The URI.
+        uri: String,
     },
     /// The meshes do not form a tree.
     #[error("{0}")]
@@ -99,15 +138,142 @@ impl Part {
 }
 
 /// URIs of the external buffer files `bytes` refers to (not data URIs, not the GLB blob).
+/// A URI that would read outside the file's folder (a `..` segment, an absolute path, a
+/// drive or another scheme, percent-encoded or not) is refused: a tree file must not be
+/// able to read the rest of the machine.
 pub fn external_buffer_uris(bytes: &[u8]) -> Result<Vec<String>, GltfTreeError> {
-    let gltf = gltf::Gltf::from_slice(bytes)?;
-    Ok(gltf
-        .buffers()
-        .filter_map(|b| match b.source() {
-            gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => Some(uri.to_string()),
-            _ => None,
-        })
-        .collect())
+    let gltf = parse(bytes)?;
+    let mut uris = Vec::new();
+    for buffer in gltf.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = buffer.source()
+            && !uri.starts_with("data:")
+        {
+            if !is_confined(uri) {
+                return Err(GltfTreeError::UnsafeUri {
+                    uri: uri.to_owned(),
+                });
+            }
+            uris.push(uri.to_owned());
+        }
+    }
+    Ok(uris)
+}
+
+/// Parses a glTF document. The `gltf` crate's validation indexes arrays with indices it
+/// has not checked yet (a POSITION accessor past the accessors panics inside it), so a
+/// panic there is caught and reported as a malformed file.
+fn parse(bytes: &[u8]) -> Result<gltf::Gltf, GltfTreeError> {
+    match std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes)) {
+        Ok(parsed) => Ok(parsed?),
+        Err(panic) => {
+            let reason = panic
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "an index out of range".into());
+            Err(GltfTreeError::Malformed(reason))
+        }
+    }
+}
+
+/// Whether a relative URI stays in its folder or below: no scheme or drive, no root, no
+/// `..` segment, after percent-decoding.
+fn is_confined(uri: &str) -> bool {
+    let bytes = uri.as_bytes();
+    let mut decoded = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = |b: u8| (b as char).to_digit(16);
+        match (
+            bytes[i],
+            bytes.get(i + 1).copied().and_then(hex),
+            bytes.get(i + 2).copied().and_then(hex),
+        ) {
+            (b'%', Some(hi), Some(lo)) => {
+                decoded.push((hi * 16 + lo) as u8);
+                i += 3;
+            }
+            (b, ..) => {
+                decoded.push(b);
+                i += 1;
+            }
+        }
+    }
+    let Ok(path) = String::from_utf8(decoded) else {
+        return false;
+    };
+    !path.is_empty()
+        && !path.contains(':')
+        && !path.starts_with(['/', '\\'])
+        && path.split(['/', '\\']).all(|segment| segment != "..")
+        && !path.contains('\0')
+}
+
+/// Checks an accessor before the `gltf` crate reads it (its readers assume valid files:
+/// a float index accessor reaches an `unreachable!`, an empty one underflows): its type,
+/// that it has elements, and that they lie within its buffer view and the view within
+/// its buffer.
+fn check_accessor(
+    accessor: &gltf::Accessor,
+    buffers: &[Vec<u8>],
+    mesh: &str,
+    attribute: &'static str,
+    dimensions: gltf::accessor::Dimensions,
+    types: &[gltf::accessor::DataType],
+) -> Result<(), GltfTreeError> {
+    let bad = |reason: String| GltfTreeError::Accessor {
+        mesh: mesh.to_owned(),
+        attribute,
+        index: accessor.index(),
+        reason,
+    };
+    if accessor.sparse().is_some() {
+        return Err(bad("is sparse, which tree files do not support".into()));
+    }
+    if accessor.dimensions() != dimensions || !types.contains(&accessor.data_type()) {
+        return Err(bad(format!(
+            "holds {:?} {:?}; expected {dimensions:?} of {types:?}",
+            accessor.data_type(),
+            accessor.dimensions()
+        )));
+    }
+    if accessor.count() == 0 {
+        return Err(bad("has no elements".into()));
+    }
+    let Some(view) = accessor.view() else {
+        return Err(bad("has no buffer view".into()));
+    };
+    let size = accessor.size();
+    let stride = view.stride().unwrap_or(size);
+    if stride < size {
+        return Err(bad(format!(
+            "has a stride of {stride} bytes, less than its {size}-byte elements"
+        )));
+    }
+    let end = (accessor.count() - 1)
+        .checked_mul(stride)
+        .and_then(|n| n.checked_add(size))
+        .and_then(|n| n.checked_add(accessor.offset()));
+    if end.is_none_or(|end| end > view.length()) {
+        return Err(bad(format!(
+            "extends past its buffer view ({} elements of {stride} bytes from byte {} of a {}-byte view)",
+            accessor.count(),
+            accessor.offset(),
+            view.length()
+        )));
+    }
+    let buffer_length = buffers.get(view.buffer().index()).map_or(0, Vec::len);
+    if view
+        .offset()
+        .checked_add(view.length())
+        .is_none_or(|end| end > buffer_length)
+    {
+        return Err(bad(format!(
+            "lies in a buffer view past the end of buffer {} ({buffer_length} bytes)",
+            view.buffer().index()
+        )));
+    }
+    Ok(())
 }
 
 /// Splits a glTF document into trunk and leaves and analyses them. `external` holds the
@@ -117,7 +283,7 @@ pub fn import_gltf(
     settings: &GltfTreeSettings,
     external: &HashMap<String, Vec<u8>>,
 ) -> Result<TreeAnalysis, GltfTreeError> {
-    let gltf = gltf::Gltf::from_slice(bytes)?;
+    let gltf = parse(bytes)?;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for buffer in gltf.buffers() {
         let fail = |uri: &str, reason: String| GltfTreeError::Buffer {
@@ -167,6 +333,7 @@ pub fn import_gltf(
         })
     };
     let (mut trunk, mut leaves) = (Part::default(), Part::default());
+    let mut primitives = 0;
     let mut visit: Vec<(gltf::Node, Mat4)> =
         match gltf.default_scene().or_else(|| gltf.scenes().next()) {
             Some(scene) => scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect(),
@@ -185,39 +352,89 @@ pub fn import_gltf(
                     mode: primitive.mode(),
                 });
             }
+            primitives += 1;
             let leaf = is_leaf(node.name())
                 || is_leaf(mesh.name())
                 || is_leaf(primitive.material().name());
             let part = if leaf { &mut leaves } else { &mut trunk };
+            use gltf::accessor::{DataType, Dimensions};
+            let Some(position_accessor) = primitive.get(&gltf::Semantic::Positions) else {
+                return Err(GltfTreeError::NoPositions { mesh: mesh_name });
+            };
+            let check = |accessor: &gltf::Accessor, attribute, dimensions, types: &[DataType]| {
+                check_accessor(accessor, &buffers, &mesh_name, attribute, dimensions, types)
+            };
+            check(
+                &position_accessor,
+                "POSITION",
+                Dimensions::Vec3,
+                &[DataType::F32],
+            )?;
+            // Normals are optional: any other kind is read as none.
+            let normals_valid = primitive.get(&gltf::Semantic::Normals).is_some_and(|a| {
+                check(&a, "NORMAL", Dimensions::Vec3, &[DataType::F32]).is_ok()
+                    && a.count() == position_accessor.count()
+            });
+            if let Some(indices) = primitive.indices() {
+                check(
+                    &indices,
+                    "indices",
+                    Dimensions::Scalar,
+                    &[DataType::U8, DataType::U16, DataType::U32],
+                )?;
+            }
             let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
             let positions: Vec<Vec3> = reader
                 .read_positions()
-                .ok_or(GltfTreeError::NoPositions { mesh: mesh_name })?
+                .ok_or(GltfTreeError::NoPositions {
+                    mesh: mesh_name.clone(),
+                })?
                 .map(|p| world.transform_point3(Vec3::from(p)))
                 .collect();
+            let vertices = positions.len();
             let first = part.positions.len() as u32;
-            match reader.read_normals() {
+            match reader.read_normals().filter(|_| normals_valid) {
                 Some(normals) => part.normals.extend(normals.map(|n| {
                     (normal_matrix * Vec3::from(n))
                         .try_normalize()
                         .unwrap_or(Vec3::Y)
                 })),
-                None => part
-                    .normals
-                    .extend(core::iter::repeat_n(Vec3::Y, positions.len())),
+                None => part.normals.extend(core::iter::repeat_n(Vec3::Y, vertices)),
             }
             match reader.read_indices() {
-                Some(indices) => part.indices.extend(indices.into_u32().map(|i| first + i)),
-                None => part.indices.extend(first..first + positions.len() as u32),
+                Some(indices) => {
+                    for i in indices.into_u32() {
+                        if i as usize >= vertices {
+                            return Err(GltfTreeError::IndexOutOfRange {
+                                mesh: mesh_name,
+                                value: i,
+                                vertices,
+                            });
+                        }
+                        part.indices.push(first + i);
+                    }
+                }
+                None => part.indices.extend(first..first + vertices as u32),
             }
+            // glTF keeps colours within 0–1; the `gltf` crate does not check.
             let [r, g, b, _] = primitive
                 .material()
                 .pbr_metallic_roughness()
-                .base_color_factor();
+                .base_color_factor()
+                .map(|c| {
+                    if c.is_finite() {
+                        c.clamp(0.0, 1.0)
+                    } else {
+                        1.0
+                    }
+                });
             part.color_sum += Vec3::new(r, g, b) * positions.len() as f32;
             part.color_weight += positions.len() as f32;
             part.positions.extend(positions);
         }
+    }
+    if primitives == 0 {
+        return Err(GltfTreeError::NoMeshes);
     }
     if trunk.indices.is_empty() {
         return Err(GltfTreeError::NoTrunk {

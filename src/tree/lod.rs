@@ -45,6 +45,22 @@ impl Default for PixelRange {
     }
 }
 
+impl PixelRange {
+    /// The widest line or largest point the LOD uses: larger settings are taken as this.
+    pub const LARGEST: u32 = 64;
+
+    /// The range as the LOD uses it: `min` at least 1, `max` at least `min`, both at most
+    /// [`PixelRange::LARGEST`] (a range a user typed as `max: 0` or `min: u32::MAX`
+    /// still means something, and no loop over widths runs for billions of steps).
+    pub fn sanitized(self) -> Self {
+        let min = self.min.clamp(1, Self::LARGEST);
+        Self {
+            min,
+            max: self.max.clamp(min, Self::LARGEST),
+        }
+    }
+}
+
 /// What one trunk draws: segment ranges (in the model's thin → thick order).
 #[derive(Clone, Debug, PartialEq, Eq, Default)]
 pub struct TrunkLod {
@@ -117,7 +133,7 @@ pub(crate) fn trunk_line_runs(
         };
         from + (lo + rest[lo..hi].partition_point(below)) as u32
     };
-    let (min, max) = (widths.min.max(1), widths.max.max(widths.min.max(1)));
+    let PixelRange { min, max } = widths.sanitized();
     if n == 0 || projected(diameters[0]) >= max as f32 + 0.5 {
         return (0, 0);
     }

@@ -167,7 +167,8 @@ pub enum SpeciesError {
         /// What is wrong with it.
         message: String,
     },
-    /// The generated meshes did not analyse (a generator bug; please report it).
+    /// The generated meshes did not analyse: the generator made something the analysis
+    /// refuses (with a validated description this is a bug in the generator).
     #[error("the generated tree does not analyse: {0}")]
     Analysis(#[from] TreeAnalysisError),
 }
@@ -189,7 +190,7 @@ pub struct GeneratedTree {
     pub leaf_indices: Vec<u32>,
 }
 
-fn invalid(field: String, message: &str) -> SpeciesError {
+fn invalid(field: String, message: impl Into<String>) -> SpeciesError {
     SpeciesError::Invalid {
         field,
         message: message.into(),
@@ -197,6 +198,20 @@ fn invalid(field: String, message: &str) -> SpeciesError {
 }
 
 impl SpeciesDesc {
+    /// The most levels of branching a species may have.
+    pub const MAX_LEVELS: usize = 16;
+
+    /// The largest trunk length, trunk radius, leaf size and spread, and root depth, in
+    /// model units.
+    pub const MAX_SIZE: f32 = 10_000.0;
+
+    /// The smallest length, radius (a branch's, of its parent's) and taper, and leaf size.
+    pub const MIN_SIZE: f32 = 1e-3;
+
+    /// The most vertices (estimated from the levels) a species may generate: about ten
+    /// times the largest shipped species.
+    pub const MAX_VERTICES: u64 = 600_000;
+
     /// Parses and validates a species description.
     pub fn from_ron_str(text: &str) -> Result<Self, SpeciesError> {
         let desc: Self = crate::ron_options().from_str(text)?;
@@ -211,17 +226,25 @@ impl SpeciesDesc {
         }
         for (i, l) in self.levels.iter().enumerate() {
             let f = |name: &str| format!("levels[{i}].{name}");
-            let positive = |x: f32| x.is_finite() && x > 0.0;
+            // Not so small that a branch collapses to a point (its direction is then no
+            // number).
+            let positive = |x: f32| x.is_finite() && x >= Self::MIN_SIZE;
             if !positive(l.length) {
-                return Err(invalid(f("length"), "must be a positive number"));
+                return Err(invalid(
+                    f("length"),
+                    format!("must be a number of at least {}", Self::MIN_SIZE),
+                ));
             }
             if !positive(l.radius) || (i > 0 && l.radius >= 1.0) {
                 return Err(invalid(
                     f("radius"),
-                    "must be positive (and below 1 for branches, a fraction of the parent's radius)",
+                    format!(
+                        "must be at least {} (and below 1 for branches, a fraction of the parent's radius)",
+                        Self::MIN_SIZE
+                    ),
                 ));
             }
-            if !(l.taper.is_finite() && l.taper > 0.0 && l.taper <= 1.0) {
+            if !(l.taper.is_finite() && l.taper >= Self::MIN_SIZE && l.taper <= 1.0) {
                 return Err(invalid(f("taper"), "must be in (0, 1]"));
             }
             if l.segments == 0 || l.segments > 256 {
@@ -242,16 +265,47 @@ impl SpeciesDesc {
                 ("length_jitter", l.length_jitter),
                 ("droop", l.droop),
             ] {
-                if !x.is_finite() {
-                    return Err(invalid(f(name), "must be a finite number"));
+                if !(x.is_finite() && x.abs() <= 3600.0) {
+                    return Err(invalid(f(name), "must be a number of degrees within ±3600"));
                 }
+            }
+            // Sizes a tree can have: a trunk of kilometres or branches a thousand times
+            // their parent's length overflow the generated positions.
+            let (most, unit) = if i == 0 {
+                (Self::MAX_SIZE, "units")
+            } else {
+                (100.0, "times the parent's length")
+            };
+            if l.length > most {
+                return Err(invalid(
+                    f("length"),
+                    format!("must be at most {most} {unit}"),
+                ));
+            }
+            if i == 0 && l.radius > Self::MAX_SIZE {
+                return Err(invalid(
+                    f("radius"),
+                    format!("must be at most {} units", Self::MAX_SIZE),
+                ));
             }
             if !(0.0..1.0).contains(&l.length_jitter) {
                 return Err(invalid(f("length_jitter"), "must be in [0, 1)"));
             }
         }
         let leaves = &self.leaves;
-        if !(leaves.size.is_finite() && leaves.size > 0.0) {
+        for (name, x) in [
+            ("leaves.size", leaves.size),
+            ("leaves.spread", leaves.spread),
+            ("root_depth", self.root_depth),
+        ] {
+            if x > Self::MAX_SIZE {
+                return Err(invalid(
+                    name.into(),
+                    format!("must be at most {} units", Self::MAX_SIZE),
+                ));
+            }
+        }
+        if !(leaves.size.is_finite() && leaves.size >= Self::MIN_SIZE) {
             return Err(invalid("leaves.size".into(), "must be a positive number"));
         }
         if !(leaves.spread.is_finite() && leaves.spread >= 0.0) {
@@ -265,6 +319,28 @@ impl SpeciesDesc {
         }
         if leaves.per_twig > 10_000 {
             return Err(invalid("leaves.per_twig".into(), "must be at most 10000"));
+        }
+        // Bounded work: every level multiplies the branches, so a species must stay a size
+        // the analysis can take (the largest shipped one has about 60 000 vertices).
+        if self.levels.len() > Self::MAX_LEVELS {
+            return Err(invalid(
+                "levels".into(),
+                format!(
+                    "at most {} levels of branching, got {}",
+                    Self::MAX_LEVELS,
+                    self.levels.len()
+                ),
+            ));
+        }
+        let vertices = self.estimated_vertices();
+        if vertices > Self::MAX_VERTICES {
+            return Err(invalid(
+                "levels".into(),
+                format!(
+                    "the branching would make about {vertices} vertices, more than {}: fewer children, segments, ring vertices or leaves per twig",
+                    Self::MAX_VERTICES
+                ),
+            ));
         }
         if !(self.root_depth.is_finite() && self.root_depth > 0.0) {
             return Err(invalid(
@@ -284,6 +360,23 @@ impl SpeciesDesc {
             }
         }
         Ok(())
+    }
+
+    /// An upper estimate of the generated vertices: branches per level times each
+    /// branch's rings, and four vertices per leaf on every twig.
+    fn estimated_vertices(&self) -> u64 {
+        let mut branches: u64 = 1;
+        let mut vertices: u64 = 0;
+        for (i, l) in self.levels.iter().enumerate() {
+            let per_branch = u64::from(l.segments + 1) * u64::from(l.ring_vertices);
+            vertices = vertices.saturating_add(branches.saturating_mul(per_branch));
+            if i + 1 == self.levels.len() {
+                let leaves = u64::from(self.leaves.per_twig) * 4;
+                vertices = vertices.saturating_add(branches.saturating_mul(leaves));
+            }
+            branches = branches.saturating_mul(u64::from(l.children));
+        }
+        vertices
     }
 
     /// Generates the trunk and leaves meshes.

@@ -60,6 +60,10 @@ pub enum SpringSetError {
     },
 }
 
+/// The most a spring may be displaced at rest under its strongest wind, in world units:
+/// a push a thousand units long bends any tree flat.
+pub const MAX_WIND_DISPLACEMENT: f32 = 1000.0;
+
 fn invalid(field: String, message: impl Into<String>) -> SpringSetError {
     SpringSetError::Invalid {
         field,
@@ -117,29 +121,60 @@ impl SpringSet {
             }
             let w = &s.wind;
             let g = &w.gusts;
+            let time = |t: f32| t.is_finite() && t >= 0.0;
             let ok = w.direction.is_finite()
                 && w.strength.is_finite()
                 && g.frequency.is_finite()
                 && g.frequency >= 0.0
                 && g.strength.0.is_finite()
+                && g.strength.1.is_finite()
                 && g.strength.1 >= g.strength.0
-                && g.duration.0 >= 0.0
+                && time(g.duration.0)
+                && time(g.duration.1)
                 && g.duration.1 >= g.duration.0
-                && g.rise >= 0.0
-                && g.fall >= 0.0;
+                && time(g.rise)
+                && time(g.fall);
             if !ok {
                 return Err(invalid(
                     f("wind"),
-                    "direction and strengths must be finite, ranges (min, max) ordered, times non-negative",
+                    "direction and strengths must be finite, ranges (min, max) ordered, times finite and non-negative",
+                ));
+            }
+            // The spring's rest under the strongest wind: beyond this it would swing past
+            // any tree (and at 1e38 the step overflows and nothing moves at all).
+            let strongest = w.strength.abs() + g.strength.0.abs().max(g.strength.1.abs());
+            let reach = strongest / s.stiffness;
+            if reach > MAX_WIND_DISPLACEMENT {
+                return Err(invalid(
+                    f("wind.strength"),
+                    format!(
+                        "the strongest wind over the stiffness moves the spring {reach} units; at most {MAX_WIND_DISPLACEMENT}"
+                    ),
                 ));
             }
         }
         for (i, r) in self.rules.iter().enumerate() {
+            let f = |name: &str| format!("rules[{i}].{name}");
             if r.spring as usize >= self.springs.len() {
                 return Err(invalid(
-                    format!("rules[{i}].spring"),
+                    f("spring"),
                     format!("there are only {} springs", self.springs.len()),
                 ));
+            }
+            for (name, x) in [
+                ("min_diameter", r.min_diameter),
+                ("max_diameter", r.max_diameter),
+                ("min_height", r.min_height),
+            ] {
+                if x.is_nan() {
+                    return Err(invalid(f(name), "must be a number"));
+                }
+            }
+            if !(r.influence.is_finite() && (0.0..=1.0).contains(&r.influence)) {
+                return Err(invalid(f("influence"), "must be within 0–1"));
+            }
+            if !(r.max_angle.is_finite() && (0.0..=180.0).contains(&r.max_angle)) {
+                return Err(invalid(f("max_angle"), "must be within 0–180 degrees"));
             }
         }
         Ok(())

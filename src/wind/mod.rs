@@ -7,7 +7,7 @@ mod motion;
 mod plugin;
 mod spring;
 
-pub use asset::{SpringSet, SpringSetError, SpringSetLoader, WindPlugin};
+pub use asset::{MAX_WIND_DISPLACEMENT, SpringSet, SpringSetError, SpringSetLoader, WindPlugin};
 pub use motion::{
     AssociationRule, RingMotion, WindRig, associate, moved_bounds, ring_offsets, update_interval,
 };

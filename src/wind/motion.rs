@@ -5,7 +5,7 @@ use bevy::math::{Quat, Vec3, Vec3A, Vec4};
 use serde::{Deserialize, Serialize};
 
 use crate::culling::CullShape;
-use crate::tree::{BoundingSphere, Bounds, NO_RING, TreeModel};
+use crate::tree::{BoundingSphere, Bounds, TreeModel};
 
 /// A rule associating rings with a spring: the first rule a ring satisfies applies.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -94,8 +94,13 @@ pub fn associate(
 }
 
 fn has_moving_ancestor(motions: &[RingMotion], model: &TreeModel, mut ring: u32) -> bool {
-    while ring != NO_RING {
-        if motions[ring as usize].spring.is_some() {
+    // In a valid model parents come first ([`TreeModel::validate`]); a model built by
+    // hand that breaks this ends the walk instead of reading past the rings or looping.
+    for _ in 0..model.rings.len() {
+        let Some(motion) = motions.get(ring as usize) else {
+            return false;
+        };
+        if motion.spring.is_some() {
             return true;
         }
         ring = model.rings[ring as usize].parent;
@@ -120,7 +125,7 @@ pub struct WindRig {
 struct RigRing {
     /// Unit direction from the parent's centre to this ring's, at rest.
     from: Vec3A,
-    /// [`NO_RING`] for a root ring.
+    /// [`NO_RING`](crate::tree::NO_RING) for a root ring.
     parent: u32,
     /// [`NO_SPRING`] for a ring that only carries its parent's offset.
     spring: u32,

@@ -4,6 +4,8 @@
     reason = "each test binary includes this module and uses a different part of it"
 )]
 
+pub mod fuzz;
+
 use bevy::asset::{AssetPlugin, LoadState};
 use bevy::prelude::*;
 use bevy_sherwood::prelude::*;
