@@ -244,7 +244,10 @@ mod malformed {
         let e = error(&format!(
             r#"({MATERIALS}, {GOOD_TERRAIN}, species: [(tree: "t", instances: [(scale: Some(-1.0))])])"#
         ));
-        assert_eq!(e, "species[0].instances[0].scale: must be positive");
+        assert_eq!(
+            e,
+            "species[0].instances[0].scale: must be positive, at most 1000"
+        );
     }
 }
 
