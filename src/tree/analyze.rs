@@ -56,6 +56,7 @@ impl core::fmt::Display for TreePart {
 
 /// Why a pair of meshes cannot be analysed into a tree.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum TreeAnalysisError {
     /// The trunk has no triangles.
     #[error("the {part} mesh has no triangles")]
@@ -647,7 +648,12 @@ impl Hierarchy {
         positions: &[Vec3],
         adjacency: &Adjacency,
     ) -> Result<u32, TreeAnalysisError> {
-        let inside = |v: u32| vertices.contains(&v);
+        // Membership by binary search: a "ring" can be large (a ground plane exported with
+        // the tree lies below the ground too), and a linear search per neighbour made
+        // this quadratic in its vertices.
+        let mut sorted = vertices.clone();
+        sorted.sort_unstable();
+        let inside = |v: u32| sorted.binary_search(&v).is_ok();
         let degree = |v: u32| adjacency.of(v).iter().filter(|&&w| inside(w)).count();
         // A single hub joined to every other vertex is a cap's centre, not part of the loop
         // (two such vertices are a quad with a diagonal: both belong to the loop).
@@ -663,7 +669,7 @@ impl Hierarchy {
         };
         let center = mean(loop_vertices.iter().map(|&v| positions[v as usize]));
         if loop_vertices.len() > 1 {
-            let in_loop = |w: u32| loop_vertices.contains(&w);
+            let in_loop = |w: u32| inside(w) && !extra.contains(&w);
             for &v in &loop_vertices {
                 let neighbours = adjacency.of(v).iter().filter(|&&w| in_loop(w)).count();
                 if neighbours < 2 {
