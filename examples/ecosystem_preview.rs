@@ -9,6 +9,7 @@
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::window::{PresentMode, WindowResolution};
+use bevy_sherwood::culling::ForestCulling;
 use bevy_sherwood::ecosystem::ForestState;
 use bevy_sherwood::prelude::*;
 

@@ -33,6 +33,7 @@ use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
 use bevy_sherwood::ecosystem::TreeInstance;
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::ForestRenderStats;
+use bevy_sherwood::tree::SpeciesDesc;
 
 const WIDTH: u32 = 960;
 const HEIGHT: u32 = 540;

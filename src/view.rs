@@ -43,7 +43,7 @@ pub(crate) fn build(app: &mut App) {
     #[cfg(feature = "render")]
     app.add_systems(
         PostUpdate,
-        update_lod_views.before(crate::SherwoodSystems::Animate),
+        update_lod_views.before(crate::schedule::SherwoodSystems::Animate),
     );
 }
 

@@ -4,6 +4,8 @@
 mod common;
 
 use bevy::prelude::*;
+use bevy_sherwood::culling::CullView;
+use bevy_sherwood::culling::ForestCulling;
 use bevy_sherwood::culling::{CullResult, FrustumPlanes, MovedShapes, cull_brute_force};
 use bevy_sherwood::ecosystem::{ForestState, ForestTerrain};
 use bevy_sherwood::prelude::*;
@@ -48,11 +50,7 @@ fn blow(app: &mut App) {
 
 /// Edits the default spring set in place.
 fn edit_spring_set(app: &mut App, edit: impl FnOnce(&mut bevy_sherwood::wind::SpringSet)) {
-    let set = app
-        .world()
-        .resource::<bevy_sherwood::wind::WindSettings>()
-        .sets[0]
-        .clone();
+    let set = app.world().resource::<WindSettings>().sets[0].clone();
     edit(
         &mut app
             .world_mut()

@@ -5,6 +5,8 @@ mod common;
 
 use bevy::prelude::*;
 use bevy_sherwood::cost::{CostModel, CostSettings};
+use bevy_sherwood::culling::CullView;
+use bevy_sherwood::culling::ForestCulling;
 use bevy_sherwood::culling::FrustumPlanes;
 use bevy_sherwood::draw::TreeDrawList;
 use bevy_sherwood::lod::StrategyKind;
@@ -18,6 +20,9 @@ fn app() -> App {
     // Fixed costs: these tests compare selections across frames, which learned costs
     // would otherwise change (nothing is measured in a headless app, but say so).
     app.world_mut().resource_mut::<CostSettings>().online = false;
+    // A still forest: swaying trees change their leaf groups' culling and pixel sizes, and
+    // with them the floors, from one run to the next (the wind follows the real clock).
+    app.world_mut().resource_mut::<WindSettings>().enabled = false;
     let handle = app
         .world()
         .resource::<AssetServer>()
@@ -155,10 +160,6 @@ fn the_prediction_stays_within_the_rendering_time() {
 #[test]
 fn modes_and_targets_switch_at_run_time_without_respawning() {
     let mut app = app();
-    // Swaying trees change which leaf groups are culled; this test is about the budget.
-    app.world_mut()
-        .resource_mut::<bevy_sherwood::wind::WindSettings>()
-        .enabled = false;
     let instances = app.world().resource::<ForestCulling>().entities.clone();
     let unlimited = frame(&mut app, with(LodMode::Unlimited, 50.0));
     let static_lod = frame(&mut app, with(LodMode::Static, 50.0));
@@ -270,7 +271,7 @@ fn ladder_strategies_may_drop_objects_and_say_so() {
 fn the_diagnostics_plugin_publishes_the_frame() {
     use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
     let mut app = app();
-    app.add_plugins(bevy_sherwood::lod::LodDiagnosticsPlugin);
+    app.add_plugins(LodDiagnosticsPlugin);
     frame(&mut app, with(LodMode::Tclod, 100.0));
     let d = frame(&mut app, with(LodMode::Tclod, 100.0));
     let store = app.world().resource::<DiagnosticsStore>();
@@ -336,10 +337,6 @@ fn the_budget_chooses_the_calibration_file_and_a_bad_one_falls_back() {
 #[test]
 fn the_selection_spends_its_time_up_to_full_detail() {
     let mut app = app();
-    // A still forest: the same visible objects at every target.
-    app.world_mut()
-        .resource_mut::<bevy_sherwood::wind::WindSettings>()
-        .enabled = false;
     app.update();
     let unlimited = frame(&mut app, with(LodMode::Unlimited, 100.0));
     for mode in [LodMode::Tclod, LodMode::Tc] {

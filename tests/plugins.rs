@@ -79,6 +79,24 @@ fn plugin_group_can_leave_a_plugin_out() {
 }
 
 #[test]
+#[should_panic(expected = "LodPlugin needs CostPlugin")]
+fn a_missing_prerequisite_is_named_at_start_up() {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin::default(),
+        SherwoodPlugins.build().disable::<CostPlugin>(),
+    ));
+    app.finish();
+}
+
+#[test]
+#[should_panic(expected = "TreePlugin needs Bevy's AssetPlugin")]
+fn a_missing_asset_plugin_is_named() {
+    App::new().add_plugins((MinimalPlugins, SherwoodPlugins));
+}
+
+#[test]
 fn calibrations_are_looked_for_in_the_apps_asset_folder() {
     use bevy_sherwood::cost::CalibrationDir;
     let folder = std::env::temp_dir().join("sherwood-assets-elsewhere");

@@ -30,6 +30,7 @@ const NONE: u32 = u32::MAX;
 
 /// Why a node was refused by [`LodHierarchy`].
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum HierarchyError {
     /// A leaf object without impostors cannot be represented.
     #[error("node {node}: a leaf object needs at least one impostor")]

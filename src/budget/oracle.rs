@@ -14,6 +14,7 @@ pub const MAX_FRONTIER: usize = 1 << 20;
 
 /// Why an exact optimum was not computed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum OracleError {
     /// The instance is too large for the exact dynamic programme.
     #[error(

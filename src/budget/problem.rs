@@ -81,6 +81,7 @@ pub struct ObjectDesc {
 
 /// Why an object was refused by [`BudgetProblem::push_object`].
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum BudgetInputError {
     /// The object has no representation at all.
     #[error("object {object} has no representations: every object needs at least one level")]

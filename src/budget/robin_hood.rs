@@ -122,7 +122,8 @@ pub fn fit_continuous(full: f32, minimum: f32, time: f32) -> Fit {
     }
 }
 
-/// Residue worth another pass, as a fraction of the rendering time.
+/// Residue worth another pass, as a fraction of the rendering time (or of the floors, when
+/// they exceed it).
 pub const RESIDUE_FRACTION: f64 = 0.01;
 
 /// At most this many passes over the residue after the hand-out.
@@ -141,8 +142,8 @@ pub const RESIDUE_PASSES: u32 = 3;
 /// **The remainder is handed out again** (the paper suggests spending it on quality): an
 /// object visited early may be given less than its full detail while the objects after it
 /// cannot use all of theirs, and what they leave comes back at the end with nobody left
-/// to take it. When that residue is more than [`RESIDUE_FRACTION`] of the rendering time,
-/// it is shared again by value among the objects still below their best representation
+/// to take it. When that residue is more than [`RESIDUE_FRACTION`] of the rendering time
+/// (of the floors' sum, when the floors alone exceed it), it is shared again by value among the objects still below their best representation
 /// (level 0), simple → complex, each searching again with what it used plus its share;
 /// up to [`RESIDUE_PASSES`] times.
 #[derive(Clone, Debug, Default)]
@@ -224,9 +225,12 @@ impl RobinHood {
             // Remainder back to the pot; an overrun is reported, not taken from others.
             remaining += f64::from((given - allocations[i].used).max(0.0));
         }
-        // The residue, again, to the objects still below their best.
+        // The residue, again, to the objects still below their best. Measured against what
+        // is spent, so that a frame whose floors exceed its time does not hand out crumbs
+        // that a frame with more time would leave (more time must not draw less).
+        let worth_a_pass = RESIDUE_FRACTION * f64::from(rendering_time).max(total_floor);
         for _ in 0..RESIDUE_PASSES {
-            if remaining <= RESIDUE_FRACTION * f64::from(rendering_time) {
+            if remaining <= worth_a_pass {
                 break;
             }
             let hungry = |a: &Allocation| a.level.is_some_and(|l| l > 0);

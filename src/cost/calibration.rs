@@ -189,6 +189,7 @@ pub const MAX_PRIMITIVE_SECONDS: f32 = 0.01;
 
 /// Why a calibration file was refused.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum CalibrationError {
     /// The RON does not parse (the message names line, column and field).
     #[error("{0}")]
@@ -201,7 +202,7 @@ pub enum CalibrationError {
 impl Calibration {
     /// Parses and validates a calibration.
     pub fn from_ron_str(text: &str) -> Result<Self, CalibrationError> {
-        let mut calibration: Self = crate::ron_options().from_str(text)?;
+        let mut calibration: Self = crate::ron_file::ron_options().from_str(text)?;
         // Files written before near-equal counts were merged, or edited by hand.
         for table in &mut calibration.logic {
             *table = LogicTable::new(table.target_ms, core::mem::take(&mut table.samples));

@@ -37,6 +37,7 @@ pub struct CostSample {
 
 /// Why a fit failed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum FitError {
     /// Fewer than three finite samples.
     #[error("need at least 3 finite samples to fit 3 parameters, got {0}")]

@@ -119,6 +119,7 @@ struct RenderedFrames(Arc<Mutex<Vec<RenderedFrame>>>);
 pub struct DrawIncomplete(pub bool);
 
 /// The render world's view of the clock.
+#[cfg(feature = "render")]
 #[derive(Resource, Debug, Default)]
 struct RenderClock {
     frame: u64,

@@ -6,8 +6,8 @@ use bevy::prelude::*;
 use super::hierarchy::{
     BoxHierarchy, CullInstance, CullResult, CullShape, FrustumPlanes, MovedShapes,
 };
-use crate::SherwoodSystems;
 use crate::ecosystem::{ForestState, ForestTerrain, TreeInstance};
+use crate::schedule::SherwoodSystems;
 use crate::tree::{Bounds, TreeModel};
 
 /// The view culling tests against. Cameras get one automatically from their Bevy
@@ -50,7 +50,7 @@ impl ForestCulling {
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
 #[reflect(Resource)]
 pub struct CullingDebug {
-    /// Draw the boxes.
+    /// Draw the boxes. Default: `false`.
     pub enabled: bool,
 }
 
@@ -74,6 +74,11 @@ impl Plugin for CullingPlugin {
     }
 
     fn finish(&self, app: &mut App) {
+        crate::schedule::require_plugin::<crate::tree::TreePlugin>(
+            app,
+            "CullingPlugin",
+            "TreePlugin",
+        );
         // The debug view needs Bevy's gizmos, which headless apps do not have.
         #[cfg(feature = "render")]
         if app.is_plugin_added::<bevy::gizmos::GizmoPlugin>() {

@@ -140,6 +140,7 @@ impl Default for EcosystemDesc {
 
 /// Why an ecosystem file was refused.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum EcosystemError {
     /// The RON does not parse (the message names line, column and field).
     #[error("{0}")]
@@ -214,7 +215,7 @@ impl EcosystemDesc {
     /// Optional fields may be written bare (`knots_x: [...]`) or as `Some(...)`: RON's
     /// `implicit_some` extension is on.
     pub fn from_ron_str(text: &str) -> Result<Self, EcosystemError> {
-        let desc: Self = crate::ron_options().from_str(text)?;
+        let desc: Self = crate::ron_file::ron_options().from_str(text)?;
         desc.validate()?;
         Ok(desc)
     }

@@ -17,6 +17,7 @@ pub struct Ecosystem(pub EcosystemDesc);
 
 /// Why an ecosystem file could not be loaded.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum EcosystemFileError {
     /// Reading failed.
     #[error("could not read the file: {0}")]
@@ -44,11 +45,8 @@ impl AssetLoader for EcosystemLoader {
         _settings: &(),
         _load_context: &mut LoadContext<'_>,
     ) -> Result<Ecosystem, EcosystemFileError> {
-        let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await?;
-        Ok(Ecosystem(EcosystemDesc::from_ron_str(
-            core::str::from_utf8(&bytes)?,
-        )?))
+        let text = crate::ron_file::read_text::<EcosystemFileError>(reader).await?;
+        Ok(Ecosystem(EcosystemDesc::from_ron_str(&text)?))
     }
 
     fn extensions(&self) -> &[&str] {
@@ -136,7 +134,20 @@ pub struct ForestTerrain {
 pub struct EcosystemPlugin;
 
 impl Plugin for EcosystemPlugin {
+    fn finish(&self, app: &mut App) {
+        crate::schedule::require_plugin::<crate::tree::TreePlugin>(
+            app,
+            "EcosystemPlugin",
+            "TreePlugin",
+        );
+    }
+
     fn build(&self, app: &mut App) {
+        crate::schedule::require_plugin::<AssetPlugin>(
+            app,
+            "EcosystemPlugin",
+            "Bevy's AssetPlugin",
+        );
         app.init_asset::<Ecosystem>()
             .register_asset_loader(EcosystemLoader)
             .add_systems(Update, spawn_forests);

@@ -5,8 +5,79 @@
 use bevy::diagnostic::{Diagnostic, DiagnosticPath, Diagnostics, RegisterDiagnostic};
 use bevy::prelude::*;
 
-use super::LodDiagnostics;
-use crate::SherwoodSystems;
+use crate::cost::{FamilyTimes, LearnedCosts};
+use crate::draw::PrimitiveCounts;
+use crate::schedule::SherwoodSystems;
+
+/// What the LOD stages did in the last frame.
+#[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource)]
+pub struct LodDiagnostics {
+    /// The frame these figures are of ([`FrameClock::frame`](crate::cost::FrameClock)).
+    pub frame: u64,
+    /// The target frame time, ms.
+    pub target_ms: f32,
+    /// Visible objects (a tree's trunk and leaves count separately).
+    pub visible_objects: u32,
+    /// Visible tree instances.
+    pub visible_instances: u32,
+    /// Predicted logic time (the main world's update), ms.
+    pub logic_ms: f32,
+    /// Rendering time handed out to the objects, ms (the fixed part excluded).
+    pub render_budget_ms: f32,
+    /// Predicted fixed part of the rendering, ms.
+    pub render_fixed_ms: f32,
+    /// Predicted rendering time: the fixed part and the selection, ms.
+    pub predicted_render_ms: f32,
+    /// Predicted frame time, ms: logic and rendering as they overlap
+    /// ([`FrameOverlap`](crate::cost::FrameOverlap)).
+    pub predicted_frame_ms: f32,
+    /// The most recent measured frame (a frame or two before this one: the render world
+    /// reports late): its number, or 0 before any.
+    pub measured_frame: u64,
+    /// Its frame time, ms.
+    pub measured_frame_ms: f32,
+    /// Its logic time, ms.
+    pub measured_logic_ms: f32,
+    /// Its rendering time, ms.
+    pub measured_render_ms: f32,
+    /// What had been predicted for its frame time, ms.
+    pub measured_frame_predicted_ms: f32,
+    /// Rendering time handed out but not used by anyone, ms.
+    pub wasted_ms: f32,
+    /// What the cost model has learned.
+    pub learned: LearnedCosts,
+    /// The selection's rendering time by primitive family as the calibration alone prices
+    /// it, seconds: what the cost model learns from (with the measured times) once the
+    /// frame is measured.
+    pub calibrated: FamilyTimes,
+    /// Predicted rendering time beyond the rendering time, ms: cheapest representations
+    /// that did not fit (Robin Hood draws every visible object at least at its cheapest;
+    /// the triangle budget never goes below them).
+    pub overrun_ms: f32,
+    /// Robin Hood: every visible object's cheapest representation together, ms, paid
+    /// before the rest of the rendering time is handed out by value.
+    pub floor_ms: f32,
+    /// How far those cheapest representations alone exceed the rendering time, ms: the
+    /// overrun no choice could avoid with every visible object drawn. Positive means the
+    /// target cannot be held with this many objects in view (see [`LodDiagnostics::visible_objects`]).
+    pub floor_excess_ms: f32,
+    /// Primitives selected.
+    pub counts: PrimitiveCounts,
+    /// Objects drawn at their cheapest representation although it did not fit.
+    pub truncated: u32,
+    /// Visible objects drawn with nothing (always 0 with Robin Hood).
+    pub undrawn: u32,
+    /// Time of the Value stage, ms.
+    pub value_stage_ms: f32,
+    /// Time of the Budget stage, ms.
+    pub budget_stage_ms: f32,
+    /// Time of the Select stage, ms.
+    pub select_stage_ms: f32,
+    /// The target frame time is at or below the logic time this frame, so there was no
+    /// rendering time to hand out and everything was drawn at its cheapest.
+    pub target_below_logic: bool,
+}
 
 /// Publishes [`LodDiagnostics`] as Bevy diagnostics each frame. Without it the resource
 /// is still kept (it is a few numbers) and nothing else is done.
@@ -112,6 +183,14 @@ const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 22] = [
 ];
 
 impl Plugin for LodDiagnosticsPlugin {
+    fn finish(&self, app: &mut App) {
+        crate::schedule::require_plugin::<super::LodPlugin>(
+            app,
+            "LodDiagnosticsPlugin",
+            "LodPlugin",
+        );
+    }
+
     fn build(&self, app: &mut App) {
         for (path, suffix, _) in PATHS {
             app.register_diagnostic(Diagnostic::new(path).with_suffix(suffix));

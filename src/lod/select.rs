@@ -825,10 +825,13 @@ fn tclod_choice(
         return chosen;
     }
     let each = costs.points(max, 1);
+    // Never more points of the largest size than cover the group: more would only
+    // overdraw it, with time another object could use.
+    let covering = static_split(n, area, max).0.max(1);
     let affordable = if each > 0.0 {
-        (time / each).min(n as f32) as u32
+        (time / each).min(covering as f32) as u32
     } else {
-        n
+        covering
     };
     let count = affordable.max(1);
     (

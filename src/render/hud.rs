@@ -15,13 +15,16 @@ pub struct ForestHudPlugin;
 #[derive(Resource, Clone, Debug, Reflect)]
 #[reflect(Resource)]
 pub struct ForestHud {
-    /// Whether the overlay is shown.
+    /// Whether the overlay is shown. Default: `true`.
     pub visible: bool,
-    /// Target frame time in milliseconds to show; when `None`, the [`FrameBudget`](crate::lod::FrameBudget)'s.
+    /// Target frame time in milliseconds to show; when `None`, the
+    /// [`FrameBudget`](crate::lod::FrameBudget)'s. Default: `None`.
     pub target_ms: Option<f32>,
     /// Extra lines shown under the counters (an example's key help, for instance).
+    /// Default: empty.
     pub footer: String,
-    /// Frame time smoothed over about half a second, in milliseconds.
+    /// Frame time smoothed over about half a second, in milliseconds; written by the HUD.
+    /// Default: `0.0`.
     pub smoothed_frame_ms: f32,
 }
 

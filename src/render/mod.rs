@@ -101,6 +101,14 @@ pub struct ForestRenderStats {
 struct StatsMailbox(Arc<Mutex<ForestRenderStats>>);
 
 impl Plugin for ForestRenderPlugin {
+    fn finish(&self, app: &mut App) {
+        crate::schedule::require_plugin::<crate::tree::TreePlugin>(
+            app,
+            "ForestRenderPlugin",
+            "TreePlugin",
+        );
+    }
+
     fn build(&self, app: &mut App) {
         embedded_asset!(app, "forest.wgsl");
         let mailbox = StatsMailbox::default();

@@ -22,6 +22,7 @@ pub const BINARY_VERSION: u32 = 1;
 
 /// Why a tree file could not be loaded.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum TreeFileError {
     /// Reading failed.
     #[error("could not read the file: {0}")]
@@ -285,7 +286,7 @@ impl TreeModel {
 
     /// Parses and validates a model saved with [`TreeModel::to_ron_string`].
     pub fn from_ron_str(text: &str) -> Result<Self, TreeFileError> {
-        let model: Self = crate::ron_options().from_str(text)?;
+        let model: Self = crate::ron_file::ron_options().from_str(text)?;
         model.validate()?;
         Ok(model)
     }
@@ -336,9 +337,8 @@ impl AssetLoader for SpeciesLoader {
         _settings: &(),
         load_context: &mut LoadContext<'_>,
     ) -> Result<TreeModel, TreeFileError> {
-        let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await?;
-        let species = SpeciesDesc::from_ron_str(core::str::from_utf8(&bytes)?)?;
+        let text: String = crate::ron_file::read_text::<TreeFileError>(reader).await?;
+        let species = SpeciesDesc::from_ron_str(&text)?;
         let analysis = species.generate_and_analyze()?;
         for warning in &analysis.warnings {
             warn!("{}: {warning:?}", load_context.path());
@@ -412,11 +412,16 @@ fn bump_models_version(
 
 impl Plugin for TreePlugin {
     fn build(&self, app: &mut App) {
+        crate::schedule::require_plugin::<bevy::asset::AssetPlugin>(
+            app,
+            "TreePlugin",
+            "Bevy's AssetPlugin",
+        );
         app.init_asset::<TreeModel>()
             .init_resource::<TreeModelsVersion>()
             .add_systems(
                 PostUpdate,
-                bump_models_version.before(crate::SherwoodSystems::Animate),
+                bump_models_version.before(crate::schedule::SherwoodSystems::Animate),
             )
             .register_asset_loader(SpeciesLoader)
             .register_asset_loader(TreeModelLoader);

@@ -41,6 +41,7 @@ impl Default for GltfTreeSettings {
 
 /// Why a glTF file could not become a tree.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum GltfTreeError {
     /// The file is not valid glTF.
     #[error("not valid glTF: {0}")]

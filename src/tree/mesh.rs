@@ -11,6 +11,7 @@ use super::model::TreeModel;
 
 /// Why a Bevy mesh cannot be read as tree input.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MeshConversionError {
     /// Only triangle lists describe trees.
     #[error("the mesh's topology is {0:?}; trees need a triangle list")]

@@ -155,6 +155,7 @@ impl Default for SpeciesDesc {
 
 /// Why a species description was refused.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SpeciesError {
     /// The RON text does not parse; the message names line, column and field.
     #[error("{0}")]
@@ -214,7 +215,7 @@ impl SpeciesDesc {
 
     /// Parses and validates a species description.
     pub fn from_ron_str(text: &str) -> Result<Self, SpeciesError> {
-        let desc: Self = crate::ron_options().from_str(text)?;
+        let desc: Self = crate::ron_file::ron_options().from_str(text)?;
         desc.validate()?;
         Ok(desc)
     }

@@ -40,6 +40,7 @@ impl Default for SpringSet {
 
 /// Why a spring set was refused.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SpringSetError {
     /// Reading failed.
     #[error("could not read the file: {0}")]
@@ -74,7 +75,7 @@ fn invalid(field: String, message: impl Into<String>) -> SpringSetError {
 impl SpringSet {
     /// Parses and validates a spring set (optional fields may be written bare).
     pub fn from_ron_str(text: &str) -> Result<Self, SpringSetError> {
-        let set: Self = crate::ron_options().from_str(text)?;
+        let set: Self = crate::ron_file::ron_options().from_str(text)?;
         set.validate()?;
         Ok(set)
     }
@@ -196,25 +197,11 @@ impl AssetLoader for SpringSetLoader {
         _settings: &(),
         _load_context: &mut LoadContext<'_>,
     ) -> Result<SpringSet, SpringSetError> {
-        let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await?;
-        SpringSet::from_ron_str(core::str::from_utf8(&bytes)?)
+        let text = crate::ron_file::read_text::<SpringSetError>(reader).await?;
+        SpringSet::from_ron_str(&text)
     }
 
     fn extensions(&self) -> &[&str] {
         &["wind.ron"]
-    }
-}
-
-/// Registers spring-set assets and runs the wind stage in `SherwoodSystems::Animate`
-/// (see [`WindSettings`](super::WindSettings) and [`RingOffsetTable`](super::RingOffsetTable)).
-#[derive(Default)]
-pub struct WindPlugin;
-
-impl Plugin for WindPlugin {
-    fn build(&self, app: &mut App) {
-        app.init_asset::<SpringSet>()
-            .register_asset_loader(SpringSetLoader);
-        super::plugin::build(app);
     }
 }

@@ -7,9 +7,9 @@ mod motion;
 mod plugin;
 mod spring;
 
-pub use asset::{MAX_WIND_DISPLACEMENT, SpringSet, SpringSetError, SpringSetLoader, WindPlugin};
+pub use asset::{MAX_WIND_DISPLACEMENT, SpringSet, SpringSetError, SpringSetLoader};
 pub use motion::{
     AssociationRule, RingMotion, WindRig, associate, moved_bounds, ring_offsets, update_interval,
 };
-pub use plugin::{RingOffsetTable, WindSettings, WindStats};
+pub use plugin::{RingOffsetTable, WindPlugin, WindSettings, WindStats};
 pub use spring::{FixedStepper, GustDesc, Spring, SpringDesc, WindDesc};

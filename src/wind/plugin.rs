@@ -5,19 +5,20 @@
 use bevy::math::Vec3A;
 use bevy::prelude::*;
 
-use super::asset::SpringSet;
+use super::asset::{SpringSet, SpringSetLoader};
 use std::collections::HashMap;
 
 use super::motion::{WindRig, associate, moved_bounds, ring_offsets, update_interval};
 use super::spring::{FixedStepper, Spring};
-use crate::SherwoodSystems;
 use crate::culling::{ForestCulling, InstanceVisibility, MovedShapes};
 use crate::ecosystem::TreeInstance;
+use crate::schedule::SherwoodSystems;
 use crate::tree::{TreeModel, TreeModelsVersion};
 use crate::view::LodView;
 
 /// Wind configuration. Changing it at run time takes effect on the next frame.
-#[derive(Resource, Clone, Debug)]
+#[derive(Resource, Clone, Debug, Reflect)]
+#[reflect(Resource)]
 pub struct WindSettings {
     /// Move trees at all. Default: `true`.
     pub enabled: bool,
@@ -88,19 +89,39 @@ struct WindState {
     sets: Vec<Option<(AssetId<SpringSet>, Vec<Spring>, FixedStepper)>>,
 }
 
-pub(super) fn build(app: &mut App) {
-    app.init_resource::<WindSettings>()
-        .init_resource::<WindState>()
-        .init_resource::<RingOffsetTable>()
-        .init_resource::<WindStats>()
-        .init_resource::<TreeModelsVersion>()
-        .add_systems(Startup, load_default_set)
-        .add_systems(
-            PostUpdate,
-            (step_springs, move_rings)
-                .chain()
-                .in_set(SherwoodSystems::Animate),
+/// Registers spring-set assets and runs the wind stage in `SherwoodSystems::Animate`
+/// (see [`WindSettings`] and [`RingOffsetTable`]).
+#[derive(Default)]
+pub struct WindPlugin;
+
+impl Plugin for WindPlugin {
+    fn finish(&self, app: &mut App) {
+        crate::schedule::require_plugin::<crate::tree::TreePlugin>(app, "WindPlugin", "TreePlugin");
+        crate::schedule::require_plugin::<crate::culling::CullingPlugin>(
+            app,
+            "WindPlugin",
+            "CullingPlugin",
         );
+    }
+
+    fn build(&self, app: &mut App) {
+        crate::schedule::require_plugin::<AssetPlugin>(app, "WindPlugin", "Bevy's AssetPlugin");
+        app.init_asset::<SpringSet>()
+            .register_asset_loader(SpringSetLoader)
+            .init_resource::<WindSettings>()
+            .register_type::<WindSettings>()
+            .init_resource::<WindState>()
+            .init_resource::<RingOffsetTable>()
+            .init_resource::<WindStats>()
+            .init_resource::<TreeModelsVersion>()
+            .add_systems(Startup, load_default_set)
+            .add_systems(
+                PostUpdate,
+                (step_springs, move_rings)
+                    .chain()
+                    .in_set(SherwoodSystems::Animate),
+            );
+    }
 }
 
 fn load_default_set(mut settings: ResMut<WindSettings>, server: Res<AssetServer>) {

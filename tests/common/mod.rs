@@ -8,7 +8,9 @@ pub mod fuzz;
 
 use bevy::asset::{AssetPlugin, LoadState};
 use bevy::prelude::*;
+use bevy_sherwood::culling::CullView;
 use bevy_sherwood::prelude::*;
+use bevy_sherwood::tree::SpeciesDesc;
 
 /// A shipped species (`assets/species/NAME.species.ron`), generated and analysed.
 pub fn species(name: &str) -> TreeModel {

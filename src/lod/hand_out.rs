@@ -1,0 +1,374 @@
+//! The Budget and Select stages: the rendering time the cost model leaves in the target,
+//! handed out by the configured strategy with each object's search inside the hand-out,
+//! and the chosen lists written to the instances.
+
+use std::time::Instant;
+
+use bevy::prelude::*;
+
+use super::select::{self, LeafMethod, PrimitiveCosts, VisibleGroup};
+use super::value::VisibleTree;
+use super::{
+    FrameBudget, LADDER_FRACTIONS, LodDiagnostics, LodFrame, LodMode, StrategyKind,
+    TARGET_WARNING_SECS,
+};
+use crate::budget::{BudgetStrategy, Fit, Level, ObjectDesc, PreviousSelection};
+use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction};
+use crate::culling::ForestCulling;
+use crate::draw::{PrimitiveCounts, TreeDrawList};
+use crate::tree::TreeModel;
+
+pub(super) fn hand_out_time(
+    mut frame: ResMut<LodFrame>,
+    budget: Res<FrameBudget>,
+    mut cost_model: ResMut<CostModel>,
+    clock: Res<FrameClock>,
+    models: Res<Assets<TreeModel>>,
+    time: Res<Time<Real>>,
+    mut diagnostics: ResMut<LodDiagnostics>,
+) {
+    let start = Instant::now();
+    let frame = &mut *frame;
+    let scales = cost_model.family_scales();
+    let costs = cost_model
+        .primitive_costs()
+        .within_viewport(frame.viewport_pixels);
+    let visible_instances = frame.trees.len() as u32;
+    let logic = cost_model.logic_time(visible_instances);
+    let overlap = cost_model.overlap();
+    let fixed = cost_model.render_fixed();
+    let target = (budget.target_ms.max(0.0)) / 1000.0;
+    let available = overlap.rendering_time(logic, target);
+    let target_below_logic =
+        available <= 0.0 && budget.mode != LodMode::Unlimited && budget.mode != LodMode::Static;
+    if target_below_logic {
+        let now = time.elapsed_secs();
+        let since = *frame.target_below_logic_since.get_or_insert(now);
+        if !frame.warned_target && now - since >= TARGET_WARNING_SECS {
+            warn!(
+                "FrameBudget: target {:.1} ms has been at or below the logic time ({:.1} ms now) for {TARGET_WARNING_SECS} s; every object is drawn at its cheapest",
+                budget.target_ms,
+                logic * 1000.0
+            );
+            frame.warned_target = true;
+        }
+    } else {
+        frame.target_below_logic_since = None;
+        frame.warned_target = false;
+    }
+    let rendering = (available - fixed).max(0.0);
+
+    // The models by `VisibleTree::model`, looked up once a frame.
+    let tree_models: Vec<Option<&TreeModel>> =
+        frame.infos.iter().map(|info| models.get(info.id)).collect();
+    let model_of = |tree: &VisibleTree| tree_models.get(tree.model as usize).copied().flatten();
+
+    // Per tree, a fresh list.
+    frame
+        .lists
+        .resize_with(frame.trees.len(), TreeDrawList::default);
+    for list in &mut frame.lists[..frame.trees.len()] {
+        list.clear();
+    }
+
+    let mut predicted = 0.0f32;
+    // What of it went to lines and to points (the rest to triangles).
+    let mut parts = select::Selected::default();
+    let mut take = |chosen: select::Selected| {
+        parts.lines += chosen.lines;
+        parts.points += chosen.points;
+        chosen
+    };
+    let mut truncated = 0;
+    let mut wasted = 0.0;
+    let mut undrawn = 0;
+    let mut floor = 0.0;
+    let mut floor_excess = 0.0;
+    match budget.mode {
+        LodMode::Unlimited | LodMode::Static => {
+            for (tree, list) in frame.trees.iter().zip(&mut frame.lists) {
+                let Some(m) = model_of(tree) else {
+                    continue;
+                };
+                let unlimited = budget.mode == LodMode::Unlimited;
+                if tree.trunk_visible {
+                    predicted += take(if unlimited {
+                        select::trunk_tc(m, &tree.view, &costs, f32::INFINITY, list)
+                    } else {
+                        select::trunk_static(m, &tree.view, &costs, budget.line_widths, list)
+                    })
+                    .cost;
+                }
+                let method = if unlimited {
+                    LeafMethod::Full
+                } else {
+                    LeafMethod::Static(budget.point_sizes.sanitized().min)
+                };
+                predicted += take(tree_leaves(
+                    m,
+                    tree,
+                    &frame.groups,
+                    &costs,
+                    method,
+                    0.0,
+                    list,
+                ))
+                .cost;
+            }
+        }
+        LodMode::Tc | LodMode::Tclod => {
+            let tclod = budget.mode == LodMode::Tclod;
+            let (trees, groups, objects, lists) = (
+                &frame.trees,
+                &frame.groups,
+                &frame.objects,
+                &mut frame.lists,
+            );
+            let leaf_method = if tclod {
+                LeafMethod::Tclod(budget.point_sizes)
+            } else {
+                LeafMethod::Tc
+            };
+            // What object `i` draws with `given` seconds, written into `list`.
+            let search = |i: usize, given: f32, list: &mut TreeDrawList| {
+                let object = objects[i];
+                let tree = &trees[object.tree as usize];
+                let Some(m) = model_of(tree) else {
+                    return select::Selected::default();
+                };
+                if object.leaves {
+                    tree_leaves(m, tree, groups, &costs, leaf_method, given, list)
+                } else if tclod {
+                    select::trunk_tclod(m, &tree.view, &costs, budget.line_widths, given, list)
+                } else {
+                    select::trunk_tc(m, &tree.view, &costs, given, list)
+                }
+            };
+            let stats = if budget.strategy == StrategyKind::RobinHood {
+                // Every object's cheapest representation, paid before the hand-out.
+                let floors = &mut frame.floors;
+                floors.clear();
+                floors.extend(objects.iter().map(|object| {
+                    let tree = &trees[object.tree as usize];
+                    let Some(m) = model_of(tree) else {
+                        return 0.0;
+                    };
+                    if object.leaves {
+                        tree_leaves_floor(m, tree, groups, &costs, leaf_method)
+                    } else {
+                        select::trunk_floor(
+                            m,
+                            &tree.view,
+                            &costs,
+                            tclod.then_some(budget.line_widths),
+                        )
+                    }
+                }));
+                frame.robin_hood.distribute_with(
+                    &frame.values,
+                    &frame.complexities,
+                    &frame.floors,
+                    rendering,
+                    |i, given| {
+                        let chosen = take(search(i, given, &mut lists[objects[i].tree as usize]));
+                        Fit {
+                            used: chosen.cost,
+                            // 0: full detail, nothing more to buy.
+                            level: u32::from(!chosen.full),
+                            truncated: chosen.truncated,
+                        }
+                    },
+                    &mut frame.allocations,
+                )
+            } else {
+                // Ladders: each object's representations at fractions of its full cost.
+                frame.problem.clear();
+                frame.rung_times.clear();
+                frame.next_previous.clear();
+                let scratch = &mut frame.scratch;
+                for (i, object) in objects.iter().enumerate() {
+                    let full = search(i, 1.0e6, scratch).cost;
+                    let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
+                    let mut times = [0.0; LADDER_FRACTIONS.len()];
+                    let mut previous_cost = f32::INFINITY;
+                    for (j, fraction) in LADDER_FRACTIONS.iter().enumerate() {
+                        times[j] = full * fraction;
+                        let cost = search(i, times[j], scratch).cost.min(previous_cost);
+                        previous_cost = cost;
+                        let accuracy = if full > 0.0 {
+                            (cost / full).sqrt()
+                        } else {
+                            1.0
+                        };
+                        ladder[j] = Level::new(cost, frame.values[i] * accuracy);
+                    }
+                    let key = (trees[object.tree as usize].entity, object.leaves);
+                    let previous = frame
+                        .previous
+                        .get(&key)
+                        .map_or(PreviousSelection::New, |&l| PreviousSelection::Level(l));
+                    let desc = ObjectDesc {
+                        value: frame.values[i],
+                        complexity: frame.complexities[i],
+                        previous,
+                    };
+                    if frame.problem.push_object(desc, &ladder).is_err() {
+                        // Not expected: values and costs are finite by construction. Keep
+                        // the indices aligned with a free, worthless object.
+                        let _ = frame
+                            .problem
+                            .push_object(ObjectDesc::default(), &[Level::new(0.0, 0.0)]);
+                    }
+                    frame.rung_times.push(times);
+                }
+                let strategy: &mut dyn BudgetStrategy = match budget.strategy {
+                    StrategyKind::FunkhouserSequin => &mut frame.funkhouser,
+                    StrategyKind::FunkhouserIncremental => &mut frame.incremental,
+                    _ => &mut frame.triangle_budget,
+                };
+                let stats = strategy.distribute(&frame.problem, rendering, &mut frame.allocations);
+                for (i, allocation) in frame.allocations.iter().enumerate() {
+                    let object = objects[i];
+                    if let Some(level) = allocation.level {
+                        let time = frame.rung_times[i][level as usize];
+                        take(search(i, time, &mut lists[object.tree as usize]));
+                        let key = (trees[object.tree as usize].entity, object.leaves);
+                        frame.next_previous.insert(key, level);
+                    }
+                }
+                core::mem::swap(&mut frame.previous, &mut frame.next_previous);
+                stats
+            };
+            predicted = stats.used;
+            truncated = stats.truncated;
+            undrawn = stats.dropped;
+            wasted = stats.wasted;
+            floor = stats.floor;
+            floor_excess = stats.floor_excess;
+        }
+    }
+
+    let mut counts = PrimitiveCounts::default();
+    for (tree, list) in frame.trees.iter().zip(&frame.lists) {
+        if let Some(info) = frame.infos.get(tree.model as usize) {
+            counts += info.slot.counts(list);
+        }
+    }
+    // The selection by family, priced as the calibration alone would: what the cost
+    // model learns from once the frame is measured.
+    let triangles = (predicted - parts.lines - parts.points).max(0.0);
+    let triangle_vertices = (counts.triangles as f32 * costs.triangle).min(triangles);
+    let priced = FamilyTimes {
+        triangles: triangle_vertices,
+        triangle_pixels: triangles - triangle_vertices,
+        lines: parts.lines,
+        points: parts.points,
+    };
+    let render = fixed + predicted;
+    let frame_time = overlap.frame_time(logic, render);
+    let calibrated = priced.unscaled(scales);
+    cost_model.record(FramePrediction {
+        frame: clock.frame,
+        visible_instances,
+        calibrated,
+        logic,
+        render,
+        frame_time,
+    });
+    let measured = cost_model.last_learned().copied().unwrap_or_default();
+    *diagnostics = LodDiagnostics {
+        frame: clock.frame,
+        target_ms: budget.target_ms,
+        visible_objects: frame.objects.len() as u32,
+        visible_instances,
+        logic_ms: logic * 1000.0,
+        render_budget_ms: rendering * 1000.0,
+        render_fixed_ms: fixed * 1000.0,
+        predicted_render_ms: render * 1000.0,
+        predicted_frame_ms: frame_time * 1000.0,
+        measured_frame: measured.measured.frame,
+        measured_frame_ms: measured.measured.interval * 1000.0,
+        measured_logic_ms: measured.measured.logic * 1000.0,
+        measured_render_ms: measured.measured.render * 1000.0,
+        measured_frame_predicted_ms: measured.predicted.frame_time * 1000.0,
+        wasted_ms: wasted * 1000.0,
+        overrun_ms: (predicted - rendering).max(0.0) * 1000.0,
+        floor_ms: floor * 1000.0,
+        floor_excess_ms: floor_excess * 1000.0,
+        learned: cost_model.learned(),
+        calibrated,
+        counts,
+        truncated,
+        undrawn,
+        value_stage_ms: frame.value_ms,
+        budget_stage_ms: start.elapsed().as_secs_f32() * 1000.0,
+        select_stage_ms: 0.0,
+        target_below_logic,
+    };
+}
+
+/// What [`tree_leaves`] draws with no time: the cost of the leaves' cheapest
+/// representation.
+fn tree_leaves_floor(
+    model: &TreeModel,
+    tree: &VisibleTree,
+    groups: &[VisibleGroup],
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+) -> f32 {
+    match tree.leaf_depth {
+        Some(depth) => select::leaves_at_depth_floor(model, &tree.view, costs, method, depth),
+        None => {
+            let groups = &groups[tree.groups.start as usize..tree.groups.end as usize];
+            select::leaves_floor(model, &tree.view, costs, method, groups)
+        }
+    }
+}
+
+/// A tree's leaves by `method` with `time`: group by group, or all at one depth.
+fn tree_leaves(
+    model: &TreeModel,
+    tree: &VisibleTree,
+    groups: &[VisibleGroup],
+    costs: &PrimitiveCosts,
+    method: LeafMethod,
+    time: f32,
+    list: &mut TreeDrawList,
+) -> select::Selected {
+    match tree.leaf_depth {
+        Some(depth) => select::leaves_at_depth(model, &tree.view, costs, method, depth, time, list),
+        None => {
+            let groups = &groups[tree.groups.start as usize..tree.groups.end as usize];
+            select::leaves(model, &tree.view, costs, method, groups, time, list)
+        }
+    }
+}
+
+pub(super) fn write_draw_lists(
+    mut frame: ResMut<LodFrame>,
+    culling: Option<Res<ForestCulling>>,
+    mut lists: Query<&mut TreeDrawList>,
+    mut diagnostics: ResMut<LodDiagnostics>,
+) {
+    let start = Instant::now();
+    let frame = &mut *frame;
+    let Some(culling) = culling else {
+        return;
+    };
+    // Invisible instances draw nothing; visible ones get their chosen list.
+    let mut next = 0;
+    for &entity in &culling.entities {
+        let Ok(mut list) = lists.get_mut(entity) else {
+            continue;
+        };
+        if next < frame.trees.len() && frame.trees[next].entity == entity {
+            // Swapped, not compared and copied: the frame's list gets the old one's
+            // allocations to fill next frame.
+            core::mem::swap(&mut *list, &mut frame.lists[next]);
+            next += 1;
+        } else if !list.is_empty() {
+            list.clear();
+        }
+    }
+    diagnostics.select_stage_ms = start.elapsed().as_secs_f32() * 1000.0;
+}

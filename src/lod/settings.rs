@@ -1,0 +1,92 @@
+//! What a user configures: the frame's target, the mode and the strategy.
+
+use bevy::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::budget::ValueFunction;
+use crate::tree::PixelRange;
+
+/// How objects are drawn.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
+pub enum LodMode {
+    /// Time-critical with points-and-lines LOD (thesis §6.5): thin trunk segments as lines
+    /// of several widths, leaves as points of several sizes, as many triangles as fit.
+    #[default]
+    Tclod,
+    /// Time-critical with triangles only (thesis §6.4): as many as fit, trunk from the
+    /// thickest segment down, leaf groups from their far leaves in.
+    Tc,
+    /// The pixel-driven points-and-lines LOD (thesis §4.4) with no budget: a baseline.
+    Static,
+    /// Everything at full detail: the reference.
+    Unlimited,
+}
+
+/// Which strategy hands out the rendering time in the time-critical modes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
+pub enum StrategyKind {
+    /// Robin Hood: every visible object gets time in proportion to its value, remainders
+    /// pass on; nothing visible is dropped.
+    #[default]
+    RobinHood,
+    /// Funkhouser–Séquin's greedy over each object's ladder; may drop objects.
+    FunkhouserSequin,
+    /// Funkhouser–Séquin's incremental variant, starting from last frame's choice.
+    FunkhouserIncremental,
+    /// The triangle-budget greedy.
+    TriangleBudget,
+}
+
+/// The frame's budget and how it is spent. Changing it takes effect on the next frame.
+#[derive(Resource, Clone, Debug, PartialEq, Serialize, Deserialize, Reflect)]
+#[reflect(Resource)]
+#[serde(default)]
+pub struct FrameBudget {
+    /// Target frame time in milliseconds; 100 because this crate's reference machine
+    /// renders in software. Default: `100.0`. A target at or below the logic time leaves no rendering time:
+    /// everything is drawn at its cheapest ([`LodDiagnostics::target_below_logic`]), and a
+    /// warning is logged once it has lasted [`TARGET_WARNING_SECS`] (not for the slow
+    /// frames of start-up, while shaders compile and the measured logic time settles).
+    pub target_ms: f32,
+    /// How objects are drawn. Default: [`LodMode::Tclod`].
+    pub mode: LodMode,
+    /// Who hands out the time in the time-critical modes. Default:
+    /// [`StrategyKind::RobinHood`]. The
+    /// ladder strategies see each object as a ladder of its representations at
+    /// [`LADDER_FRACTIONS`] of its full cost, with benefit `value · √(cost / full cost)`.
+    pub strategy: StrategyKind,
+    /// Value function. Default: [`ValueFunction::P11`].
+    pub value: ValueFunction,
+    /// Importance of trunks. Default: `1.0`.
+    pub trunk_importance: f32,
+    /// Importance of leaves, as in the paper. Default: `0.0625` (1/16).
+    pub leaf_importance: f32,
+    /// Line widths in pixels. Default: `PixelRange { min: 1, max: 20 }`.
+    pub line_widths: PixelRange,
+    /// Point sizes in pixels; static mode uses the smallest. Default: `PixelRange { min: 1, max: 20 }`.
+    pub point_sizes: PixelRange,
+}
+
+impl Default for FrameBudget {
+    fn default() -> Self {
+        Self {
+            target_ms: 100.0,
+            mode: LodMode::Tclod,
+            strategy: StrategyKind::RobinHood,
+            value: ValueFunction::P11,
+            trunk_importance: 1.0,
+            leaf_importance: 1.0 / 16.0,
+            line_widths: PixelRange::default(),
+            point_sizes: PixelRange::default(),
+        }
+    }
+}
+
+/// The fractions of an object's full-detail time at which its ladder's rungs are searched
+/// for the ladder strategies (best → cheapest; 0 gives the cheapest representation).
+pub const LADDER_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
+
+/// How long, in seconds, the target must stay at or below the logic time before a
+/// warning is logged: longer than the start-up's slow frames take to leave the learned
+/// logic time.
+pub const TARGET_WARNING_SECS: f32 = 3.0;

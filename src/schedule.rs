@@ -1,0 +1,72 @@
+//! The ground every stage stands on: the [`SherwoodSystems`] sets that order the stages
+//! of a frame, and the plugin that configures them.
+
+use bevy::ecs::schedule::SystemSet;
+use bevy::prelude::*;
+use bevy::transform::TransformSystems;
+
+/// The stages of one Sherwood frame, chained in this order in [`PostUpdate`], after
+/// transform propagation (and, with the `render` feature, after camera frusta update).
+///
+/// Every stage reads what the stages before it wrote and nothing after it, so user
+/// systems can be ordered against any stage, e.g. `.before(SherwoodSystems::Budget)`.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SherwoodSystems {
+    /// Wind: springs step and move the rings of instances that are visible or near the view.
+    Animate,
+    /// Box-hierarchy culling: which instances, trunks and leaf groups are visible.
+    Cull,
+    /// A value per visible object (trunk and leaves of each tree) from the value function.
+    Value,
+    /// Logic-time estimate, rendering time, and the strategy's time per object.
+    Budget,
+    /// Per object, the representation that fits its time; fills the draw lists.
+    Select,
+    /// Predicted against measured times, counts, and frame statistics.
+    Stats,
+}
+
+/// Orders the [`SherwoodSystems`] sets. Every other Sherwood plugin relies on it;
+/// [`SherwoodPlugins`] adds it first.
+#[derive(Default)]
+pub struct SherwoodCorePlugin;
+
+impl Plugin for SherwoodCorePlugin {
+    fn build(&self, app: &mut App) {
+        app.configure_sets(
+            PostUpdate,
+            (
+                SherwoodSystems::Animate,
+                SherwoodSystems::Cull,
+                SherwoodSystems::Value,
+                SherwoodSystems::Budget,
+                SherwoodSystems::Select,
+                SherwoodSystems::Stats,
+            )
+                .chain()
+                .after(TransformSystems::Propagate),
+        );
+        crate::view::build(app);
+        #[cfg(feature = "render")]
+        app.configure_sets(
+            PostUpdate,
+            SherwoodSystems::Animate
+                .after(bevy::camera::visibility::VisibilitySystems::UpdateFrusta),
+        );
+    }
+}
+
+/// Stops start-up with a message naming the missing plugin, instead of a missing-resource
+/// panic deep inside a system on the first frame.
+///
+/// Called from the `finish` of a plugin that needs `P` (plugins may be added in any order
+/// until then); for Bevy's `AssetPlugin`, which must come first, from `build`.
+pub(crate) fn require_plugin<P: Plugin>(app: &App, plugin: &str, needed: &str) {
+    if !app.is_plugin_added::<P>() {
+        panic!(
+            "bevy_sherwood: {plugin} needs {needed}, which is not added. `SherwoodPlugins` adds \
+             every Sherwood plugin; Bevy's `AssetPlugin` comes with `DefaultPlugins`, or add \
+             `AssetPlugin::default()` next to `MinimalPlugins` (before the Sherwood plugins)."
+        );
+    }
+}

@@ -1,0 +1,84 @@
+//! The calibration run on a real adapter (Mesa lavapipe in CI), shortened: it measures
+//! every primitive family and the logic, writes a calibration, and the cost model can
+//! load what it wrote. Run with `cargo test --features gpu-tests`.
+#![cfg(feature = "gpu-tests")]
+
+mod common;
+#[path = "../examples/support/windowless.rs"]
+mod windowless;
+
+use bevy::camera::RenderTarget;
+use bevy::log::LogPlugin;
+use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use bevy_sherwood::cost::read_calibration;
+use bevy_sherwood::prelude::*;
+use bevy_sherwood::render::{CalibrationProgress, CalibrationRunPlugin, CalibrationSettings};
+
+#[test]
+fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
+    let out = std::env::temp_dir().join(format!(
+        "sherwood-calibration-run-{}.calibration.ron",
+        std::process::id()
+    ));
+    let mut app = App::new();
+    app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
+        .add_plugins((SherwoodPlugins, CalibrationRunPlugin))
+        .insert_resource(CalibrationSettings {
+            out: Some(out.clone()),
+            settle_frames: 2,
+            frames_per_sample: 3,
+            primitive_counts: vec![3_000, 9_000],
+            sizes: vec![1, 4],
+            logic_targets_ms: vec![100.0],
+            logic_positions: 2,
+        });
+    windowless::finish_plugins(&mut app);
+    let mut desc = common::default_ecosystem();
+    desc.set_total_trees(60);
+    common::spawn_forest(&mut app, desc);
+    let world = app.world_mut();
+    let image = Image::new_target_texture(320, 180, TextureFormat::Rgba8UnormSrgb, None);
+    let image = world.resource_mut::<Assets<Image>>().add(image);
+    world.spawn((
+        Camera3d::default(),
+        RenderTarget::Image(image.into()),
+        Msaa::Off,
+        Transform::from_xyz(-20.0, 25.0, -20.0).looking_at(Vec3::new(100.0, 0.0, 100.0), Vec3::Y),
+    ));
+    world.spawn(DirectionalLight::default());
+
+    let mut outcome = None;
+    for _ in 0..3_000 {
+        app.update();
+        outcome = app
+            .world()
+            .resource::<CalibrationProgress>()
+            .outcome
+            .clone();
+        if outcome.is_some() {
+            break;
+        }
+    }
+    let written = outcome
+        .expect("the calibration run never finished")
+        .unwrap();
+    assert_eq!(written, out);
+    let calibration = read_calibration(&out).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    // Every family measured as something, and the logic as real time (the old run could
+    // write 0 ms logic where its subtraction went negative).
+    assert!(calibration.triangles.per_primitive > 0.0 || calibration.triangles.per_pixel > 0.0);
+    assert!(!calibration.lines.is_empty() && !calibration.points.is_empty());
+    assert!(calibration.render_fixed > 0.0, "{calibration:?}");
+    let logic = &calibration.logic;
+    assert!(!logic.is_empty(), "{calibration:?}");
+    assert!(
+        logic.iter().flat_map(|t| &t.samples).all(|&(_, t)| t > 0.0),
+        "{logic:?}"
+    );
+    // The cost model installed it.
+    let installed = app.world().resource::<CostModel>().calibration().clone();
+    assert_eq!(installed.triangles, calibration.triangles);
+    assert_eq!(installed.render_fixed, calibration.render_fixed);
+}
