@@ -30,7 +30,7 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::RenderDevice;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
-use bevy_sherwood::ecosystem::TreeInstance;
+use bevy_sherwood::instance::{FixedDrawList, TreeInstance};
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::ForestRenderStats;
 use bevy_sherwood::tree::SpeciesDesc;
@@ -145,6 +145,7 @@ impl Bench {
         let mut e = self.app.world_mut().spawn((
             SceneEntity,
             TreeInstance::standalone(model.clone()),
+            FixedDrawList,
             Transform::from_translation(at),
         ));
         if let Some(list) = list {

@@ -57,7 +57,7 @@ pub struct PointRun {
 /// not mix the two (one that straddles `n` draws the leaves on both sides, each once
 /// per order).
 ///
-/// A [`TreeInstance`](crate::ecosystem::TreeInstance) without this component is drawn at
+/// A [`TreeInstance`](crate::instance::TreeInstance) without this component is drawn at
 /// full detail; one whose list is empty is not drawn.
 #[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default)]

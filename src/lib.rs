@@ -6,6 +6,7 @@ pub mod cost;
 pub mod culling;
 pub mod draw;
 pub mod ecosystem;
+pub mod instance;
 pub mod lod;
 #[cfg(feature = "render")]
 pub mod render;
@@ -28,7 +29,8 @@ pub mod prelude {
     pub use crate::cost::{CalibrationChoice, CostModel, CostPlugin, CostSettings};
     pub use crate::culling::{CullingDebug, CullingPlugin};
     pub use crate::draw::{TreeDrawList, TreeShading};
-    pub use crate::ecosystem::{Ecosystem, EcosystemPlugin, Forest, TreeInstance};
+    pub use crate::ecosystem::{Ecosystem, EcosystemPlugin, Forest};
+    pub use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
     pub use crate::lod::{
         FrameBudget, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin, StrategyKind,
     };
@@ -43,8 +45,19 @@ pub mod prelude {
 /// Every Sherwood plugin. Stages arrive one plugin each; leave one out with
 /// `SherwoodPlugins.build().disable::<ThePlugin>()`.
 ///
-/// Needs Bevy's `AssetPlugin` (part of `DefaultPlugins`; add it next to `MinimalPlugins`
-/// in a headless app).
+/// | plugin | what it adds | needs |
+/// |---|---|---|
+/// | [`SherwoodCorePlugin`] | the [`SherwoodSystems`] order, the instance table ([`instance::ForestInstances`]), [`view::LodView`] from cameras | — |
+/// | [`cost::CostPlugin`] | frame measurement, the calibration and the learning [`cost::CostModel`] | — |
+/// | [`tree::TreePlugin`] | tree assets: species (`*.species.ron`), saved models, glTF trees | `AssetPlugin` |
+/// | [`ecosystem::EcosystemPlugin`] | ecosystems (`*.ecosystem.ron`): a [`ecosystem::Forest`] spawns its trees and terrain | `AssetPlugin`, `TreePlugin` |
+/// | [`culling::CullingPlugin`] | the box hierarchy over every instance, culled against the view | `TreePlugin` |
+/// | [`wind::WindPlugin`] | springs, ring offsets and the wind's motion LOD | `AssetPlugin`, `TreePlugin`, `CullingPlugin` |
+/// | [`lod::LodPlugin`] | value, budget and each instance's [`draw::TreeDrawList`] | `TreePlugin`, `CostPlugin` |
+/// | `render::ForestRenderPlugin` (feature `render`) | the forest pass: triangles, lines and points in a few instanced draws | `TreePlugin` |
+///
+/// A missing prerequisite stops start-up with a message naming it. Bevy's `AssetPlugin`
+/// is part of `DefaultPlugins`; add it next to `MinimalPlugins` in a headless app.
 pub struct SherwoodPlugins;
 
 impl PluginGroup for SherwoodPlugins {

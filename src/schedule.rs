@@ -12,22 +12,27 @@ use bevy::transform::TransformSystems;
 /// systems can be ordered against any stage, e.g. `.before(SherwoodSystems::Budget)`.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum SherwoodSystems {
+    /// The instance table ([`ForestInstances`](crate::instance::ForestInstances)): trees
+    /// spawned, despawned and moved since the last frame.
+    Instances,
     /// Wind: springs step and move the rings of instances that are visible or near the view.
     Animate,
     /// Box-hierarchy culling: which instances, trunks and leaf groups are visible.
     Cull,
     /// A value per visible object (trunk and leaves of each tree) from the value function.
     Value,
-    /// Logic-time estimate, rendering time, and the strategy's time per object.
+    /// Logic-time estimate and rendering time; the strategy hands out time, and each
+    /// object chooses the representation that fits what it was given.
     Budget,
-    /// Per object, the representation that fits its time; fills the draw lists.
-    Select,
+    /// The chosen representations become the instances' draw lists.
+    DrawLists,
     /// Predicted against measured times, counts, and frame statistics.
     Stats,
 }
 
-/// Orders the [`SherwoodSystems`] sets. Every other Sherwood plugin relies on it;
-/// [`SherwoodPlugins`] adds it first.
+/// Orders the [`SherwoodSystems`] sets and keeps the instance table
+/// ([`ForestInstances`](crate::instance::ForestInstances)). Every other Sherwood plugin
+/// relies on it; [`SherwoodPlugins`](crate::SherwoodPlugins) adds it first.
 #[derive(Default)]
 pub struct SherwoodCorePlugin;
 
@@ -36,21 +41,27 @@ impl Plugin for SherwoodCorePlugin {
         app.configure_sets(
             PostUpdate,
             (
+                SherwoodSystems::Instances,
                 SherwoodSystems::Animate,
                 SherwoodSystems::Cull,
                 SherwoodSystems::Value,
                 SherwoodSystems::Budget,
-                SherwoodSystems::Select,
+                SherwoodSystems::DrawLists,
                 SherwoodSystems::Stats,
             )
                 .chain()
                 .after(TransformSystems::Propagate),
         );
+        app.init_resource::<crate::instance::ForestInstances>()
+            .add_systems(
+                PostUpdate,
+                crate::instance::track_instances.in_set(SherwoodSystems::Instances),
+            );
         crate::view::build(app);
         #[cfg(feature = "render")]
         app.configure_sets(
             PostUpdate,
-            SherwoodSystems::Animate
+            SherwoodSystems::Instances
                 .after(bevy::camera::visibility::VisibilitySystems::UpdateFrusta),
         );
     }
@@ -67,6 +78,24 @@ pub(crate) fn require_plugin<P: Plugin>(app: &App, plugin: &str, needed: &str) {
             "bevy_sherwood: {plugin} needs {needed}, which is not added. `SherwoodPlugins` adds \
              every Sherwood plugin; Bevy's `AssetPlugin` comes with `DefaultPlugins`, or add \
              `AssetPlugin::default()` next to `MinimalPlugins` (before the Sherwood plugins)."
+        );
+    }
+}
+
+/// For a plugin that indexes the instance table, from its `build`: the table exists
+/// (empty) without [`SherwoodCorePlugin`], so the app runs; [`warn_without_core`] names
+/// the missing plugin once plugins are added.
+pub(crate) fn use_instance_table(app: &mut App) {
+    app.init_resource::<crate::instance::ForestInstances>();
+}
+
+/// From the `finish` of a plugin that indexes the instance table: nothing keeps the table
+/// without [`SherwoodCorePlugin`].
+pub(crate) fn warn_without_core(app: &App, plugin: &str) {
+    if !app.is_plugin_added::<SherwoodCorePlugin>() {
+        warn!(
+            "bevy_sherwood: {plugin} without SherwoodCorePlugin: no tree enters the instance \
+             table, so none is culled, budgeted or drawn by it"
         );
     }
 }

@@ -28,7 +28,8 @@ fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
             out: Some(out.clone()),
             settle_frames: 2,
             frames_per_sample: 3,
-            primitive_counts: vec![3_000, 9_000],
+            // Large enough that each family's time stands well above the frame's jitter.
+            primitive_counts: vec![60_000, 180_000],
             sizes: vec![1, 4],
             logic_targets_ms: vec![100.0],
             logic_positions: 2,

@@ -126,6 +126,62 @@ proptest! {
             }
         }
     }
+
+    #[test]
+    fn a_refitted_hierarchy_culls_like_a_new_one(
+        seed in 0_u64..1000,
+        depth in 1_u32..6,
+        eye in (0_i32..400, 1_i32..60, 0_i32..400),
+        target in (0_i32..400, 0_i32..10, 0_i32..400),
+        step in (-30_i32..30, -5_i32..5, -30_i32..30),
+    ) {
+        let shapes = shapes();
+        let mut instances = forest(900, 400.0, seed);
+        let eye = Vec3::new(eye.0 as f32, eye.1 as f32, eye.2 as f32);
+        let target = Vec3::new(target.0 as f32 + 0.5, target.1 as f32, target.2 as f32 + 0.5);
+        let planes = view(eye, target, 1.0, None);
+        let mut refitted = BoxHierarchy::build(depth, &area(400.0), &instances, &shapes);
+        // Every seventh instance steps (up to 3 m, and turns): most stay in their cell.
+        let step = Vec3::new(step.0 as f32, step.1 as f32, step.2 as f32) * 0.1;
+        let moved: Vec<u32> = (0..instances.len() as u32).step_by(7).collect();
+        for &i in &moved {
+            let t = &mut instances[i as usize].transform;
+            *t = Affine3A::from_translation(step) * *t * Affine3A::from_rotation_y(0.3);
+        }
+        let still = MovedShapes::default();
+        let (mut fast, mut fresh, mut slow) =
+            (CullResult::default(), CullResult::default(), CullResult::default());
+        if refitted.refit(&moved, &instances, &shapes) {
+            refitted.cull(&planes, &instances, &shapes, &still, &mut fast);
+        } else {
+            // Some instance left its cell: refit refuses, and the caller builds anew.
+            refitted = BoxHierarchy::build(depth, &area(400.0), &instances, &shapes);
+            refitted.cull(&planes, &instances, &shapes, &still, &mut fast);
+        }
+        let mut rebuilt = BoxHierarchy::build(depth, &area(400.0), &instances, &shapes);
+        // Every box, not only the ones this view tests, is what a new hierarchy has.
+        let boxes = |h: &BoxHierarchy| h.nodes().map(|(b, _)| b).collect::<Vec<_>>();
+        prop_assert_eq!(boxes(&refitted), boxes(&rebuilt));
+        rebuilt.cull(&planes, &instances, &shapes, &still, &mut fresh);
+        cull_brute_force(&planes, &instances, &shapes, &still, &mut slow);
+        prop_assert_eq!(&fast.visibility, &fresh.visibility);
+        for i in 0..instances.len() {
+            prop_assert_eq!(fast.trunk_visible(i), slow.trunk_visible(i), "instance {}", i);
+        }
+    }
+}
+
+#[test]
+fn a_step_within_a_cell_is_refitted_and_one_across_is_refused() {
+    let shapes = shapes();
+    let mut instances = forest(100, 100.0, 7);
+    let mut hierarchy = BoxHierarchy::build(2, &area(100.0), &instances, &shapes);
+    // Cells are 25 m wide; instance 0 stands in the first one.
+    let at = Vec3::from(instances[0].transform.translation);
+    instances[0].transform.translation = Vec3::new(12.5, at.y, 12.5).into();
+    assert!(hierarchy.refit(&[0], &instances, &shapes));
+    instances[0].transform.translation = Vec3::new(80.0, at.y, 80.0).into();
+    assert!(!hierarchy.refit(&[0], &instances, &shapes));
 }
 
 #[test]

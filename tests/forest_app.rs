@@ -18,7 +18,8 @@ fn app() -> App {
 fn until_culled(app: &mut App) {
     for _ in 0..3000 {
         app.update();
-        if app.world().resource::<ForestCulling>().hierarchy.is_some() {
+        let culling = app.world().resource::<ForestCulling>();
+        if culling.hierarchy.is_some() && culling.models_loading() == 0 {
             return;
         }
         std::thread::sleep(std::time::Duration::from_millis(2));
@@ -122,7 +123,7 @@ fn forest_spawns_culls_and_respawns() {
         app.world().get::<ForestState>(forest).unwrap().generation,
         generation + 1
     );
-    assert_eq!(app.world().resource::<ForestCulling>().entities.len(), 500);
+    assert_eq!(app.world().resource::<ForestInstances>().len(), 500);
 
     // An edit that cannot be laid out leaves the previous forest standing.
     app.world_mut()
@@ -212,7 +213,10 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
     }
     assert!((0..600).any(moves));
     // Every moved instance is culled with its moved shape.
-    assert_eq!(culling.moved.len(), table.moved as usize);
+    assert_eq!(
+        app.world().resource::<MovedShapes>().len(),
+        table.moved as usize
+    );
     let stats = *app.world().resource::<WindStats>();
     assert_eq!(stats.moved, table.moved);
     assert_eq!(stats.moved + stats.skipped, stats.candidates);
@@ -222,7 +226,7 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
     let table = app.world().resource::<RingOffsetTable>();
     assert_eq!(table.moved, 0);
     assert!(table.offsets.iter().all(|o| *o == Vec3A::ZERO));
-    assert!(app.world().resource::<ForestCulling>().moved.is_empty());
+    assert!(app.world().resource::<MovedShapes>().is_empty());
 }
 
 #[test]
@@ -258,7 +262,7 @@ fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
             .translation()
             .distance(eye);
         let offsets = &table.offsets[table.starts[i] as usize..table.starts[i + 1] as usize];
-        if culling.moved.get(i).is_some() {
+        if app.world().resource::<MovedShapes>().get(i).is_some() {
             moved.push(distance);
         } else {
             assert!(
@@ -314,9 +318,9 @@ fn slowly_moving_trees_are_updated_less_often_and_hold_their_bend_in_between() {
             .collect::<Vec<_>>()
     };
     let moving = |app: &App| {
-        let culling = app.world().resource::<ForestCulling>();
-        (0..culling.entities.len())
-            .map(|i| culling.moved.get(i).is_some())
+        let moved = app.world().resource::<MovedShapes>();
+        (0..app.world().resource::<ForestInstances>().len())
+            .map(|i| moved.get(i).is_some())
             .collect::<Vec<_>>()
     };
     let interval = app.world().resource::<WindSettings>().max_update_interval as usize;

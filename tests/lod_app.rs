@@ -41,7 +41,9 @@ fn app() -> App {
     ));
     for _ in 0..3000 {
         app.update();
-        if app.world().resource::<ForestCulling>().hierarchy.is_some()
+        let culling = app.world().resource::<ForestCulling>();
+        if culling.hierarchy.is_some()
+            && culling.models_loading() == 0
             && app.world().resource::<LodDiagnostics>().visible_instances > 0
         {
             return app;
@@ -69,7 +71,7 @@ fn with(mode: LodMode, target_ms: f32) -> FrameBudget {
 fn lists(app: &mut App) -> (Vec<TreeDrawList>, Vec<TreeDrawList>) {
     let world = app.world_mut();
     let culling = world.resource::<ForestCulling>();
-    let entities = culling.entities.clone();
+    let entities = world.resource::<ForestInstances>().entities.clone();
     let visible: Vec<bool> = (0..entities.len())
         .map(|i| culling.result.visibility[i] != Default::default())
         .collect();
@@ -160,13 +162,16 @@ fn the_prediction_stays_within_the_rendering_time() {
 #[test]
 fn modes_and_targets_switch_at_run_time_without_respawning() {
     let mut app = app();
-    let instances = app.world().resource::<ForestCulling>().entities.clone();
+    let instances = app.world().resource::<ForestInstances>().entities.clone();
     let unlimited = frame(&mut app, with(LodMode::Unlimited, 50.0));
     let static_lod = frame(&mut app, with(LodMode::Static, 50.0));
     let tight = frame(&mut app, with(LodMode::Tclod, 50.0));
     let loose = frame(&mut app, with(LodMode::Tclod, 2000.0));
     let tc = frame(&mut app, with(LodMode::Tc, 50.0));
-    assert_eq!(app.world().resource::<ForestCulling>().entities, instances);
+    assert_eq!(
+        app.world().resource::<ForestInstances>().entities,
+        instances
+    );
 
     assert_eq!(unlimited.counts.lines + unlimited.counts.points, 0);
     assert!(

@@ -14,11 +14,12 @@ fn recorder(log: Log, stage: SherwoodSystems) -> impl FnMut() {
 #[test]
 fn stages_run_in_order_every_frame() {
     let stages = [
+        SherwoodSystems::Instances,
         SherwoodSystems::Animate,
         SherwoodSystems::Cull,
         SherwoodSystems::Value,
         SherwoodSystems::Budget,
-        SherwoodSystems::Select,
+        SherwoodSystems::DrawLists,
         SherwoodSystems::Stats,
     ];
     let log: Log = Arc::default();

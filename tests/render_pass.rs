@@ -20,7 +20,8 @@ use bevy::render::RenderApp;
 use bevy::render::render_resource::{CachedPipelineState, PipelineCache, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
-use bevy_sherwood::ecosystem::{EcosystemPlugin, TerrainMaterial, TreeInstance};
+use bevy_sherwood::ecosystem::{EcosystemPlugin, TerrainMaterial};
+use bevy_sherwood::instance::TreeInstance;
 use bevy_sherwood::render::ForestRenderPlugin;
 use bevy_sherwood::tree::{AnalysisOptions, MeshData, TreeModel, TreePlugin, analyze};
 use bevy_sherwood::{SherwoodCorePlugin, prelude::ForestRenderStats};
@@ -598,7 +599,6 @@ fn every_camera_draws_the_forest_from_its_own_eye() {
 
 #[test]
 fn ring_offsets_move_the_rings_on_the_gpu() {
-    use bevy_sherwood::culling::ForestCulling;
     use bevy_sherwood::wind::RingOffsetTable;
     let model = column();
     let rings = model.rings.len();
@@ -625,10 +625,8 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
         .0
     };
     let (moved, _) = render("wind_moved", eye, target, move |world| {
-        let entity = spawn_tree(world, model, None);
-        let mut culling = ForestCulling::default();
-        culling.entities = vec![entity];
-        world.insert_resource(culling);
+        // The only tree: instance 0 of the instance table, whose order the offsets follow.
+        spawn_tree(world, model, None);
         world.insert_resource(RingOffsetTable {
             offsets,
             starts: vec![0, rings as u32],

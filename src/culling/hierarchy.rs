@@ -5,6 +5,7 @@
 
 use core::ops::Range;
 
+use bevy::ecs::resource::Resource;
 use bevy::math::{Affine3A, Mat4, Vec3, Vec3A, Vec4};
 
 use crate::tree::{BoundingSphere, Bounds, TreeModel};
@@ -99,7 +100,11 @@ impl From<&TreeModel> for CullShape {
 /// their species' [`CullShape`] in the per-instance tests of partially visible leaves, so
 /// a bent tree is culled where it is drawn. An instance keeps its shape until it is
 /// rewritten or removed; storage is reused.
-#[derive(Clone, Debug, Default, PartialEq)]
+///
+/// As a resource it belongs to the wind stage, which writes it for the instances it moved
+/// this frame (indexed like [`ForestInstances`](crate::instance::ForestInstances));
+/// culling, which runs after it, reads it.
+#[derive(Resource, Clone, Debug, Default, PartialEq)]
 pub struct MovedShapes {
     /// Per instance: index into `shapes`, or `NOT_MOVED`.
     slot: Vec<u32>,
@@ -269,7 +274,7 @@ impl CullResult {
         }
     }
 
-    fn clear(&mut self, instances: usize) {
+    pub(crate) fn clear(&mut self, instances: usize) {
         self.visibility.clear();
         self.visibility
             .resize(instances, InstanceVisibility::Invisible);
@@ -353,21 +358,54 @@ pub enum NodeVisibility {
     Full,
 }
 
+/// An instance's world box: its shape's box, transformed.
+fn instance_bounds(instance: &CullInstance, shapes: &[CullShape]) -> Bounds {
+    transform_bounds(&instance.transform, &shapes[instance.shape as usize].bounds)
+}
+
 /// A quadtree of boxes over the populated area.
 #[derive(Clone, Debug)]
 pub struct BoxHierarchy {
     depth: u32,
+    grid: Grid,
     /// Level-order complete quadtree: level `l` starts at `(4^l − 1) / 3`.
     nodes: Vec<Node>,
     /// Instance indices grouped by leaf.
     order: Vec<u32>,
     /// World box of every instance.
     instance_bounds: Vec<Bounds>,
+    /// Leaf (Morton index) of every instance.
+    leaf_of: Vec<u32>,
     node_visibility: Vec<NodeVisibility>,
 }
 
 fn level_start(level: u32) -> usize {
     ((1_usize << (2 * level)) - 1) / 3
+}
+
+/// The leaf cells over the area's XZ rectangle.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    depth: u32,
+    min: Vec3,
+    size: Vec3,
+}
+
+impl Grid {
+    /// The leaf (in Morton order, so every subtree's leaves are contiguous) holding `p`;
+    /// points outside the area go to the nearest border cell.
+    fn leaf(&self, p: Vec3) -> usize {
+        let side = 1_usize << self.depth;
+        let f = ((p - self.min) / self.size * side as f32).floor();
+        let x = (f.x.max(0.0) as usize).min(side - 1);
+        let z = (f.z.max(0.0) as usize).min(side - 1);
+        let mut code = 0;
+        for bit in 0..self.depth {
+            code |= ((x >> bit) & 1) << (2 * bit);
+            code |= ((z >> bit) & 1) << (2 * bit + 1);
+        }
+        code
+    }
 }
 
 impl BoxHierarchy {
@@ -384,26 +422,17 @@ impl BoxHierarchy {
         let side = 1_usize << depth;
         let instance_bounds: Vec<Bounds> = instances
             .iter()
-            .map(|i| transform_bounds(&i.transform, &shapes[i.shape as usize].bounds))
+            .map(|i| instance_bounds(i, shapes))
             .collect();
-        let area_min = area.min;
-        let area_size = (area.max - area.min).max(Vec3::splat(f32::EPSILON));
-        let cell_of = |p: Vec3| {
-            let f = ((p - area_min) / area_size * side as f32).floor();
-            let x = (f.x.max(0.0) as usize).min(side - 1);
-            let z = (f.z.max(0.0) as usize).min(side - 1);
-            // Morton order, so every subtree's leaves are contiguous.
-            let mut code = 0;
-            for bit in 0..depth {
-                code |= ((x >> bit) & 1) << (2 * bit);
-                code |= ((z >> bit) & 1) << (2 * bit + 1);
-            }
-            code
+        let grid = Grid {
+            depth,
+            min: area.min,
+            size: (area.max - area.min).max(Vec3::splat(f32::EPSILON)),
         };
         let leaves = side * side;
-        let leaf_of: Vec<usize> = instances
+        let leaf_of: Vec<u32> = instances
             .iter()
-            .map(|i| cell_of(i.transform.translation.into()))
+            .map(|i| grid.leaf(i.transform.translation.into()) as u32)
             .collect();
         // An instance with an empty box (a tree that failed to load) can never be visible:
         // it stays out of the hierarchy, so a fully visible box cannot mark it visible.
@@ -422,7 +451,7 @@ impl BoxHierarchy {
         let mut cursor = 0;
         for leaf in 0..leaves {
             let start = cursor;
-            while cursor < order.len() && leaf_of[order[cursor] as usize] == leaf {
+            while cursor < order.len() && leaf_of[order[cursor] as usize] as usize == leaf {
                 let b = instance_bounds[order[cursor] as usize];
                 nodes[first_leaf + leaf].bounds = nodes[first_leaf + leaf].bounds.union(b);
                 cursor += 1;
@@ -444,11 +473,68 @@ impl BoxHierarchy {
         let node_visibility = vec![NodeVisibility::Untested; nodes.len()];
         Self {
             depth,
+            grid,
             nodes,
             order,
             instance_bounds,
+            leaf_of,
             node_visibility,
         }
+    }
+
+    /// Refits the boxes after the instances in `moved` changed their transforms in
+    /// `instances` (the same slice as at build time, otherwise unchanged): their boxes and
+    /// every box above them, O(moved × depth). Returns `false`, changing nothing, when a
+    /// moved instance left its leaf cell (or its box appeared or vanished): build anew.
+    pub fn refit(
+        &mut self,
+        moved: &[u32],
+        instances: &[CullInstance],
+        shapes: &[CullShape],
+    ) -> bool {
+        let first_leaf = level_start(self.depth);
+        let mut dirty = Vec::with_capacity(moved.len());
+        for &i in moved {
+            let i = i as usize;
+            let Some(instance) = instances.get(i) else {
+                return false;
+            };
+            if i >= self.leaf_of.len()
+                || self.grid.leaf(instance.transform.translation.into()) != self.leaf_of[i] as usize
+                || instance_bounds(instance, shapes).is_empty()
+                    != self.instance_bounds[i].is_empty()
+            {
+                return false;
+            }
+            dirty.push(first_leaf + self.leaf_of[i] as usize);
+        }
+        for &i in moved {
+            self.instance_bounds[i as usize] = instance_bounds(&instances[i as usize], shapes);
+        }
+        dirty.sort_unstable();
+        dirty.dedup();
+        for &node in &dirty {
+            let (start, end) = self.nodes[node].instances;
+            self.nodes[node].bounds = self.order[start as usize..end as usize]
+                .iter()
+                .fold(Bounds::EMPTY, |b, &i| {
+                    b.union(self.instance_bounds[i as usize])
+                });
+        }
+        for level in (0..self.depth).rev() {
+            let (start, child_start) = (level_start(level), level_start(level + 1));
+            for node in &mut dirty {
+                *node = start + (*node - child_start) / 4;
+            }
+            dirty.dedup();
+            for &node in &dirty {
+                let first_child = child_start + 4 * (node - start);
+                self.nodes[node].bounds = self.nodes[first_child..first_child + 4]
+                    .iter()
+                    .fold(Bounds::EMPTY, |b, c| b.union(c.bounds));
+            }
+        }
+        true
     }
 
     /// Levels below the root.

@@ -10,4 +10,4 @@ pub use hierarchy::{
 };
 #[cfg(feature = "render")]
 pub use plugin::FullyVisibleBoxes;
-pub use plugin::{CullView, CullingDebug, CullingPlugin, ForestCulling};
+pub use plugin::{CullView, CullingDebug, CullingPlugin, CullingSettings, ForestCulling};

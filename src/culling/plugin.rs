@@ -6,9 +6,9 @@ use bevy::prelude::*;
 use super::hierarchy::{
     BoxHierarchy, CullInstance, CullResult, CullShape, FrustumPlanes, MovedShapes,
 };
-use crate::ecosystem::{ForestState, ForestTerrain, TreeInstance};
+use crate::instance::ForestInstances;
 use crate::schedule::SherwoodSystems;
-use crate::tree::{Bounds, TreeModel};
+use crate::tree::{Bounds, TreeModel, TreeModelsVersion};
 
 /// The view culling tests against. Cameras get one automatically from their Bevy
 /// `Frustum` (with the `render` feature); headless apps insert it themselves.
@@ -16,32 +16,61 @@ use crate::tree::{Bounds, TreeModel};
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct CullView(pub FrustumPlanes);
 
-/// The culling state of the forest being shown: instance `i` of `entities` has
-/// visibility `result.visibility[i]`.
+/// The culling state of the instances in
+/// [`ForestInstances`](crate::instance::ForestInstances): instance `i` has visibility
+/// `result.visibility[i]`.
 #[derive(Resource, Default)]
 pub struct ForestCulling {
-    /// The instance entities, in the order of [`CullResult::visibility`].
-    pub entities: Vec<Entity>,
-    /// Their transforms and shapes.
+    /// Every instance's transform and shape (its model's index in
+    /// [`ForestInstances::model_ids`]).
     pub instances: Vec<CullInstance>,
-    /// The culling shape of every species.
+    /// The culling shape of every model (empty while it loads, or when it failed).
     pub shapes: Vec<CullShape>,
-    /// The hierarchy, once every species' model has loaded.
+    /// The hierarchy, once there are instances.
     pub hierarchy: Option<BoxHierarchy>,
     /// This frame's answer.
     pub result: CullResult,
-    /// Shapes of the instances the wind moved this frame (filled by the wind stage,
-    /// which runs first), indexed like `entities`.
-    pub moved: MovedShapes,
-    generation: u32,
-    failed_logged: u32,
+    /// `(instance layout, models version, depth)` the hierarchy was built for.
+    built: Option<(u64, u64, u32)>,
+    loading: u32,
+    failed_logged: Vec<AssetId<TreeModel>>,
     rebuilds: u64,
+    refits: u64,
 }
 
 impl ForestCulling {
-    /// Changes whenever `entities` (and with it every per-instance index) is rebuilt.
-    pub fn layout_version(&self) -> u64 {
-        self.rebuilds
+    /// The [`ForestInstances::layout_version`] that `result` is indexed by (`None` before
+    /// the first hierarchy).
+    pub fn layout_version(&self) -> Option<u64> {
+        self.built.map(|(layout, ..)| layout)
+    }
+
+    /// How many of the instances' models are still loading (their instances are not
+    /// visible until they have).
+    pub fn models_loading(&self) -> u32 {
+        self.loading
+    }
+
+    /// How many times the hierarchy was built, and how many times refitted for moved
+    /// instances.
+    pub fn rebuilds_and_refits(&self) -> (u64, u64) {
+        (self.rebuilds, self.refits)
+    }
+}
+
+/// How the box hierarchy is built.
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
+#[reflect(Resource)]
+pub struct CullingSettings {
+    /// Levels of the box hierarchy below its root (4^depth leaf boxes over the
+    /// instances' area), at most 10. An ecosystem sets it to its `culling_depth` when it
+    /// spawns. Default: `4`.
+    pub depth: u32,
+}
+
+impl Default for CullingSettings {
+    fn default() -> Self {
+        Self { depth: 4 }
     }
 }
 
@@ -60,9 +89,12 @@ pub struct CullingPlugin;
 
 impl Plugin for CullingPlugin {
     fn build(&self, app: &mut App) {
+        crate::schedule::use_instance_table(app);
         app.init_resource::<ForestCulling>()
             .init_resource::<CullingDebug>()
+            .init_resource::<CullingSettings>()
             .register_type::<CullingDebug>()
+            .register_type::<CullingSettings>()
             .add_systems(
                 PostUpdate,
                 (rebuild_hierarchy, cull_forest)
@@ -74,6 +106,7 @@ impl Plugin for CullingPlugin {
     }
 
     fn finish(&self, app: &mut App) {
+        crate::schedule::warn_without_core(app, "CullingPlugin");
         crate::schedule::require_plugin::<crate::tree::TreePlugin>(
             app,
             "CullingPlugin",
@@ -96,82 +129,87 @@ impl Plugin for CullingPlugin {
     }
 }
 
-/// Rebuilds the hierarchy when the forest was (re)spawned or its models finished loading.
+/// Builds the hierarchy when the instance layout, the models or the depth changed;
+/// refits it when instances only moved.
 fn rebuild_hierarchy(
     mut culling: ResMut<ForestCulling>,
-    forests: Query<&ForestState>,
-    instances: Query<(&TreeInstance, &GlobalTransform)>,
-    terrains: Query<&ForestTerrain>,
+    table: Res<ForestInstances>,
+    settings: Res<CullingSettings>,
     models: Res<Assets<TreeModel>>,
+    version: Res<TreeModelsVersion>,
     server: Res<AssetServer>,
 ) {
-    let Some(state) = forests.iter().find(|s| !s.instances.is_empty()) else {
-        return;
-    };
-    if culling.hierarchy.is_some() && culling.generation == state.generation {
-        return;
-    }
-    // A species whose tree failed to load gets an empty shape: its instances are never
-    // visible, and the rest of the forest is not held back waiting for it.
-    let mut shapes = Vec::with_capacity(state.species.len());
-    for handle in &state.species {
-        if let Some(model) = models.get(handle) {
-            shapes.push(CullShape::from(model));
-        } else if server.load_state(handle).is_failed() {
-            if culling.failed_logged != state.generation {
-                error!(
-                    "tree {:?} failed to load; its instances are not drawn",
-                    handle.path()
-                );
-            }
-            shapes.push(CullShape {
-                bounds: Bounds::EMPTY,
-                trunk: Bounds::EMPTY,
-                groups: Vec::new(),
-            });
-        } else {
-            return; // still loading
+    let culling = &mut *culling;
+    let key = (table.layout_version(), version.0, settings.depth);
+    if culling.built == Some(key) {
+        if table.moved().is_empty() {
+            return;
+        }
+        for &i in table.moved() {
+            culling.instances[i as usize].transform = table.transforms[i as usize];
+        }
+        if let Some(hierarchy) = &mut culling.hierarchy
+            && hierarchy.refit(table.moved(), &culling.instances, &culling.shapes)
+        {
+            culling.refits += 1;
+            return;
         }
     }
-    culling.failed_logged = state.generation;
-    let mut entities = Vec::with_capacity(state.instances.len());
-    let mut list = Vec::with_capacity(state.instances.len());
-    for &entity in &state.instances {
-        let Ok((instance, transform)) = instances.get(entity) else {
-            return; // spawned this frame: transforms not propagated yet
-        };
-        entities.push(entity);
-        list.push(CullInstance {
-            transform: transform.affine(),
-            shape: instance.species as u32,
+    // A model still loading, or whose tree failed to load, gets an empty shape: its
+    // instances are not visible (until it loads), and the rest is not held back.
+    culling.shapes.clear();
+    culling.loading = 0;
+    for &id in &table.model_ids {
+        if let Some(model) = models.get(id) {
+            culling.shapes.push(CullShape::from(model));
+            continue;
+        }
+        if !server.load_state(id).is_failed() {
+            culling.loading += 1;
+        } else if !culling.failed_logged.contains(&id) {
+            error!(
+                "tree {:?} failed to load; its instances are not drawn",
+                server.get_path(id)
+            );
+            culling.failed_logged.push(id);
+        }
+        culling.shapes.push(CullShape {
+            bounds: Bounds::EMPTY,
+            trunk: Bounds::EMPTY,
+            groups: Vec::new(),
         });
     }
-    let area = state
-        .terrain
-        .and_then(|t| terrains.get(t).ok())
-        .map_or_else(
-            || Bounds::from_points(list.iter().map(|i| Vec3::from(i.transform.translation))),
-            |t| Bounds {
-                min: Vec3::ZERO,
-                max: Vec3::new(t.terrain.size(), 0.0, t.terrain.size()),
-            },
+    culling.instances.clear();
+    culling
+        .instances
+        .extend(
+            table
+                .transforms
+                .iter()
+                .zip(&table.models)
+                .map(|(transform, &model)| CullInstance {
+                    transform: *transform,
+                    shape: model,
+                }),
         );
-    culling.hierarchy = Some(BoxHierarchy::build(
-        state.culling_depth,
-        &area,
-        &list,
-        &shapes,
-    ));
-    culling.entities = entities;
-    // Indexed by the old order.
-    culling.moved.clear();
-    culling.instances = list;
-    culling.shapes = shapes;
-    culling.generation = state.generation;
+    let area = Bounds::from_points(
+        culling
+            .instances
+            .iter()
+            .map(|i| Vec3::from(i.transform.translation)),
+    );
+    culling.hierarchy = (!culling.instances.is_empty())
+        .then(|| BoxHierarchy::build(settings.depth, &area, &culling.instances, &culling.shapes));
+    culling.result.clear(culling.instances.len());
+    culling.built = Some(key);
     culling.rebuilds += 1;
 }
 
-fn cull_forest(mut culling: ResMut<ForestCulling>, views: Query<&CullView>) {
+fn cull_forest(
+    mut culling: ResMut<ForestCulling>,
+    views: Query<&CullView>,
+    moved: Option<Res<MovedShapes>>,
+) {
     let Some(view) = views.iter().next() else {
         return;
     };
@@ -180,9 +218,10 @@ fn cull_forest(mut culling: ResMut<ForestCulling>, views: Query<&CullView>) {
         shapes,
         hierarchy,
         result,
-        moved,
         ..
     } = &mut *culling;
+    let still = MovedShapes::default();
+    let moved = moved.as_deref().unwrap_or(&still);
     if let Some(hierarchy) = hierarchy {
         hierarchy.cull(&view.0, instances, shapes, moved, result);
     }

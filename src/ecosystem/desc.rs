@@ -120,7 +120,9 @@ pub struct EcosystemDesc {
     pub terrain_material: String,
     /// Margin kept between an instance and its cell's edges, as a fraction of the cell.
     pub cell_margin: f32,
-    /// Levels of the culling box hierarchy below the root.
+    /// Levels of the culling box hierarchy below the root: spawning the forest sets
+    /// [`CullingSettings::depth`](crate::culling::CullingSettings::depth) to it (the last
+    /// ecosystem spawned decides for all trees).
     pub culling_depth: u32,
 }
 

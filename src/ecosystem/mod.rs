@@ -16,7 +16,7 @@ pub use desc::{
 pub use placement::{Angles, Placement, Tilt, tilt_from_normal};
 pub use plugin::{
     Ecosystem, EcosystemFileError, EcosystemLoader, EcosystemPlugin, Forest, ForestState,
-    ForestTerrain, TreeInstance,
+    ForestTerrain,
 };
 pub use terrain::{FaultsDesc, Terrain, TerrainDesc, TerrainError};
 #[cfg(feature = "render")]

@@ -9,6 +9,8 @@ use crate::draw::{Shading, TreeShading};
 
 use super::desc::{EcosystemDesc, EcosystemError};
 use super::terrain::Terrain;
+use crate::culling::CullingSettings;
+use crate::instance::TreeInstance;
 use crate::tree::TreeModel;
 
 /// A loaded, validated ecosystem description.
@@ -79,46 +81,6 @@ pub struct ForestState {
     spawned: bool,
 }
 
-/// One tree of a forest.
-#[derive(Component, Clone, Debug)]
-pub struct TreeInstance {
-    /// The [`Forest`] entity it belongs to.
-    pub forest: Entity,
-    /// Index of its species in the ecosystem.
-    pub species: usize,
-    /// Its tree type.
-    pub model: Handle<TreeModel>,
-    /// Its index among the forest's instances.
-    pub index: u32,
-    /// Uniform scale (also in its `Transform`).
-    pub scale: f32,
-    /// Trunk material, an index into the ecosystem's materials (in name order).
-    pub trunk_material: usize,
-    /// Leaf material, an index into the ecosystem's materials (in name order).
-    pub leaf_material: usize,
-    /// Which wind setup moves it.
-    pub motion: u32,
-}
-
-impl TreeInstance {
-    /// A tree of `model` that belongs to no forest: culling and the LOD's selection never
-    /// see it, and the render pass draws the [`TreeDrawList`](crate::draw::TreeDrawList)
-    /// given with it (spawn one: the LOD plugin gives a list-less instance an empty list).
-    /// For benchmarks, previews and tests.
-    pub fn standalone(model: Handle<TreeModel>) -> Self {
-        Self {
-            forest: Entity::PLACEHOLDER,
-            species: 0,
-            model,
-            index: 0,
-            scale: 1.0,
-            trunk_material: 0,
-            leaf_material: 0,
-            motion: 0,
-        }
-    }
-}
-
 /// The terrain of a forest: query heights and normals with [`Terrain::height_at`] and
 /// [`Terrain::normal_at`].
 #[derive(Component, Clone, Debug)]
@@ -162,6 +124,7 @@ fn spawn_forests(
     mut forests: Query<(Entity, &Forest, &mut ForestState)>,
     ecosystems: Res<Assets<Ecosystem>>,
     server: Res<AssetServer>,
+    mut culling: Option<ResMut<CullingSettings>>,
     // Absent in headless apps: the terrain then gets no mesh.
     #[cfg(feature = "render")] mut meshes: Option<ResMut<Assets<Mesh>>>,
     #[cfg(feature = "render")] mut materials: Option<ResMut<Assets<super::TerrainMaterial>>>,
@@ -204,6 +167,9 @@ fn spawn_forests(
             .map(|s| server.load::<TreeModel>(&s.tree))
             .collect();
         state.culling_depth = ecosystem.culling_depth;
+        if let Some(culling) = culling.as_deref_mut() {
+            culling.depth = ecosystem.culling_depth;
+        }
         state.generation += 1;
         state.spawned = true;
         let shadings: Vec<Shading> = ecosystem

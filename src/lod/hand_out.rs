@@ -14,8 +14,8 @@ use super::{
 };
 use crate::budget::{BudgetStrategy, Fit, Level, ObjectDesc, PreviousSelection};
 use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction};
-use crate::culling::ForestCulling;
 use crate::draw::{PrimitiveCounts, TreeDrawList};
+use crate::instance::ForestInstances;
 use crate::tree::TreeModel;
 
 pub(super) fn hand_out_time(
@@ -346,18 +346,15 @@ fn tree_leaves(
 
 pub(super) fn write_draw_lists(
     mut frame: ResMut<LodFrame>,
-    culling: Option<Res<ForestCulling>>,
+    table: Res<ForestInstances>,
     mut lists: Query<&mut TreeDrawList>,
     mut diagnostics: ResMut<LodDiagnostics>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
-    let Some(culling) = culling else {
-        return;
-    };
     // Invisible instances draw nothing; visible ones get their chosen list.
     let mut next = 0;
-    for &entity in &culling.entities {
+    for &entity in &table.entities {
         let Ok(mut list) = lists.get_mut(entity) else {
             continue;
         };

@@ -5,7 +5,8 @@
 //! Each tree is two objects — its trunk and its leaves — with their own values and
 //! complexities. Per frame, in [`SherwoodSystems`] order:
 //!
-//! * **Value**: for each visible instance ([`ForestCulling`]) the configured value
+//! * **Value**: for each visible instance ([`ForestCulling`](crate::culling::ForestCulling))
+//!   the configured value
 //!   function of its trunk (at the trunk's area-density centre) and of its leaves (the sum
 //!   over its visible leaf groups, each at its own depth), times the part's importance.
 //! * **Budget**: the logic time the cost model predicts for this many visible trees, the
@@ -17,15 +18,15 @@
 //!   fits its floor plus its share, the remainder passing on; a residue left at the end is
 //!   handed out again to objects below full detail. The search runs inside the hand-out
 //!   because a remainder is only known once the object has chosen.
-//! * **Select**: the chosen draw lists are copied into the instances' components;
+//! * **Draw lists**: the chosen draw lists are copied into the instances' components;
 //!   invisible instances get empty lists. In `Static` and `Unlimited` mode no time is
 //!   handed out and this stage does all the work.
 //!
-//! The budget predicts with the [`CostModel`]: a measured calibration as the prior and
+//! The budget predicts with the [`CostModel`](crate::cost::CostModel): a measured calibration as the prior and
 //! what the running app learned of its own frames (see [`crate::cost`]). The logic time
 //! and the rendering time left in the target come from it, the rendering time is handed
 //! out in its learned per-primitive costs, and each frame's prediction is recorded with
-//! it ([`CostModel::record`]) so that it learns from what that frame then measured.
+//! it ([`CostModel::record`](crate::cost::CostModel::record)) so that it learns from what that frame then measured.
 
 mod diagnostics;
 mod hand_out;
@@ -59,11 +60,13 @@ pub struct LodPlugin;
 
 impl Plugin for LodPlugin {
     fn finish(&self, app: &mut App) {
+        crate::schedule::warn_without_core(app, "LodPlugin");
         crate::schedule::require_plugin::<crate::tree::TreePlugin>(app, "LodPlugin", "TreePlugin");
         crate::schedule::require_plugin::<crate::cost::CostPlugin>(app, "LodPlugin", "CostPlugin");
     }
 
     fn build(&self, app: &mut App) {
+        crate::schedule::use_instance_table(app);
         app.register_type::<FrameBudget>()
             .register_type::<LodDiagnostics>()
             .init_resource::<FrameBudget>()
@@ -77,7 +80,7 @@ impl Plugin for LodPlugin {
                         .chain()
                         .in_set(SherwoodSystems::Value),
                     hand_out_time.in_set(SherwoodSystems::Budget),
-                    write_draw_lists.in_set(SherwoodSystems::Select),
+                    write_draw_lists.in_set(SherwoodSystems::DrawLists),
                 ),
             );
     }
@@ -116,13 +119,13 @@ pub(super) struct LodFrame {
     /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
     /// when models change.
     infos: Vec<ModelInfo>,
-    /// Per instance of [`ForestCulling::entities`], its model and placement: derived when
+    /// Per instance of [`ForestInstances`](crate::instance::ForestInstances), its model and placement: derived when
     /// the forest or the models change, not per frame.
     placed: Vec<PlacedTree>,
     /// The models' version `infos` was derived at, and the culling layout and models'
     /// version `placed` was.
     ranked_version: Option<u64>,
-    placed_key: Option<(u64, u64)>,
+    placed_key: Option<(u64, u64, u64)>,
     value_ms: f32,
     /// Since when (real seconds since start-up) the target has been at or below the
     /// logic time, and whether that was reported.

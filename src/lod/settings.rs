@@ -44,7 +44,7 @@ pub enum StrategyKind {
 pub struct FrameBudget {
     /// Target frame time in milliseconds; 100 because this crate's reference machine
     /// renders in software. Default: `100.0`. A target at or below the logic time leaves no rendering time:
-    /// everything is drawn at its cheapest ([`LodDiagnostics::target_below_logic`]), and a
+    /// everything is drawn at its cheapest ([`LodDiagnostics::target_below_logic`](super::LodDiagnostics::target_below_logic)), and a
     /// warning is logged once it has lasted [`TARGET_WARNING_SECS`] (not for the slow
     /// frames of start-up, while shaders compile and the measured logic time settles).
     pub target_ms: f32,

@@ -12,7 +12,7 @@ use crate::budget::{ValueInputs, ValueModel};
 use crate::cost::CostModel;
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::draw::{ModelSlot, TreeDrawList};
-use crate::ecosystem::TreeInstance;
+use crate::instance::{ForestInstances, TreeInstance};
 use crate::tree::{TreeModel, TreeModelsVersion};
 use crate::view::LodView;
 
@@ -96,18 +96,11 @@ pub(super) struct PlacedTree {
 /// [`PlacedTree::model`] of an instance whose model is not loaded.
 pub(super) const NO_MODEL: u32 = u32::MAX;
 
-fn place_trees(
-    culling: &ForestCulling,
-    instances: &Query<&TreeInstance>,
-    infos: &[ModelInfo],
-) -> Vec<PlacedTree> {
-    culling
-        .entities
-        .iter()
-        .zip(&culling.instances)
-        .map(|(&entity, cull)| {
-            let transform = cull.transform;
-            let id = instances.get(entity).ok().map(|i| i.model.id());
+fn place_trees(table: &ForestInstances, infos: &[ModelInfo]) -> Vec<PlacedTree> {
+    (0..table.len())
+        .map(|i| {
+            let transform = table.transforms[i];
+            let id = table.model_id(i);
             let model = id.and_then(|id| infos.iter().position(|info| info.id == id));
             let (center, trunk_center) = model.map_or((Vec3::ZERO, Vec3::ZERO), |m| {
                 (
@@ -179,7 +172,7 @@ pub(super) fn value_objects(
     cost_model: Res<CostModel>,
     culling: Option<Res<ForestCulling>>,
     views: Query<&LodView>,
-    instances: Query<&TreeInstance>,
+    table: Res<ForestInstances>,
     models: Res<Assets<TreeModel>>,
     version: Res<TreeModelsVersion>,
 ) {
@@ -198,9 +191,18 @@ pub(super) fn value_objects(
         frame.infos = model_infos(&models, &costs);
         frame.ranked_version = Some(version.0);
     }
-    let placed_key = (culling.layout_version(), version.0);
+    // Culling's answer is indexed by the table it was built for (the same, once models
+    // have loaded: both are kept in the same frame).
+    if culling.layout_version() != Some(table.layout_version()) {
+        return;
+    }
+    let placed_key = (
+        table.layout_version(),
+        table.transforms_version(),
+        version.0,
+    );
     if frame.placed_key != Some(placed_key) {
-        frame.placed = place_trees(&culling, &instances, &frame.infos);
+        frame.placed = place_trees(&table, &frame.infos);
         frame.placed_key = Some(placed_key);
     }
     let projection = view.projection();
@@ -237,7 +239,7 @@ pub(super) fn value_objects(
                 trunk_center,
             }),
             Some(&entity),
-        ) = (placed.get(i), culling.entities.get(i))
+        ) = (placed.get(i), table.entities.get(i))
         else {
             continue;
         };
@@ -264,8 +266,9 @@ pub(super) fn value_objects(
             };
             leaves_value = crate::budget::finite_value(per_leaf * counts);
             leaf_depth = Some(center_depth.max(crate::budget::MIN_DEPTH));
-        } else if let (Some(model), Some(cull)) = (models.get(info.id), culling.instances.get(i)) {
-            let transform = cull.transform;
+        } else if let (Some(model), Some(transform)) =
+            (models.get(info.id), table.transforms.get(i))
+        {
             for (g, group) in model.leaf_groups.iter().enumerate() {
                 if !culling.result.group_visible(i, g) {
                     continue;

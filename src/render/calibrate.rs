@@ -45,7 +45,7 @@ use crate::cost::{
 };
 use crate::culling::ForestCulling;
 use crate::draw::{LineRun, PointRun, TreeDrawList};
-use crate::ecosystem::TreeInstance;
+use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::lod::select::{PROJECTED_LENGTH_FACTOR, TreeView, group_area, trunk_triangle_area};
 use crate::lod::{FrameBudget, LodDiagnostics, LodMode};
 use crate::tree::{Projection, TreeModel};
@@ -273,7 +273,7 @@ fn run_calibration(
     (settings, calibration_dir): (Res<CalibrationSettings>, Res<CalibrationDir>),
     mut state: ResMut<RunState>,
     mut progress: ResMut<CalibrationProgress>,
-    culling: Res<ForestCulling>,
+    (culling, table): (Res<ForestCulling>, Res<ForestInstances>),
     instances: Query<&TreeInstance>,
     models: Res<Assets<TreeModel>>,
     adapter: Option<Res<AdapterIdentity>>,
@@ -293,10 +293,11 @@ fn run_calibration(
     };
     if state.plan.is_empty() {
         // Wait for the forest, its models and the adapter.
-        if culling.hierarchy.is_none() || adapter.is_none() || lod_view.is_none() {
+        let loaded = culling.hierarchy.is_some() && culling.models_loading() == 0;
+        if !loaded || adapter.is_none() || lod_view.is_none() {
             return;
         }
-        let Some(model) = culling
+        let Some(model) = table
             .entities
             .iter()
             .filter_map(|&e| instances.get(e).ok())
@@ -511,16 +512,23 @@ fn run_calibration(
 #[derive(Component)]
 struct CalibrationTree;
 
-/// A benchmark tree (not part of any forest: culling and LOD leave it alone, the pass
+/// A benchmark tree (outside the instance table: culling and LOD leave it alone, the pass
 /// draws its list).
 fn bench_tree(
     model: &Handle<TreeModel>,
     list: TreeDrawList,
     at: Vec3,
-) -> (CalibrationTree, TreeInstance, TreeDrawList, Transform) {
+) -> (
+    CalibrationTree,
+    TreeInstance,
+    FixedDrawList,
+    TreeDrawList,
+    Transform,
+) {
     (
         CalibrationTree,
         TreeInstance::standalone(model.clone()),
+        FixedDrawList,
         list,
         Transform::from_translation(at),
     )

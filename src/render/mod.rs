@@ -26,7 +26,6 @@ use bevy::asset::{embedded_asset, load_embedded_asset};
 use bevy::camera::{MainPassResolutionOverride, Viewport};
 use bevy::core_pipeline::{Core3dSystems, core_3d::main_opaque_pass_3d, schedule::Core3d};
 use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
-use bevy::ecs::entity::EntityHashMap;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::{
@@ -54,12 +53,11 @@ pub use calibrate::{
 };
 pub use hud::{ForestHud, ForestHudPlugin};
 
-use crate::culling::ForestCulling;
 use crate::draw::{
     FrameChunks, GeometryAtlas, ModelSlot, PrimitiveCounts, PrimitiveKind, TreeDrawList,
     TreeShading,
 };
-use crate::ecosystem::TreeInstance;
+use crate::instance::{ForestInstances, TreeInstance};
 use crate::tree::{NO_RING, TreeModel, TreeModelsVersion};
 use crate::wind::RingOffsetTable;
 
@@ -255,10 +253,9 @@ fn extract_forest(
             Option<&TreeShading>,
         )>,
     >,
-    culling: Extract<Option<Res<ForestCulling>>>,
+    table: Extract<Option<Res<ForestInstances>>>,
     offsets: Extract<Option<Res<RingOffsetTable>>>,
     lights: Extract<Query<(&DirectionalLight, &GlobalTransform)>>,
-    mut ring_index: Local<EntityHashMap<u32>>,
 ) {
     let frame = &mut *frame;
     if frame.geometry_version != Some(version.0) {
@@ -281,21 +278,12 @@ fn extract_forest(
         },
     );
 
-    // Ring offsets are kept in the culling order; only instances that moved get a slice.
-    ring_index.clear();
+    // Ring offsets are kept in the instance table's order; only instances that moved get
+    // a slice.
     let moving = offsets
         .as_deref()
         .filter(|t| t.moved > 0)
-        .zip(culling.as_deref());
-    if let Some((_, culling)) = moving {
-        ring_index.extend(
-            culling
-                .entities
-                .iter()
-                .enumerate()
-                .map(|(i, &e)| (e, i as u32)),
-        );
-    }
+        .zip(table.as_deref());
 
     frame.instances.clear();
     frame.chunks.clear();
@@ -321,9 +309,11 @@ fn extract_forest(
         }
         let index = frame.instances.len() as u32;
         let mut ring_base = NO_RING;
-        if let (Some((table, _)), Some(&i)) = (moving, ring_index.get(&entity)) {
-            let (start, end) = (table.starts[i as usize], table.starts[i as usize + 1]);
-            let slice = &table.offsets[start as usize..end as usize];
+        if let Some((rings, i)) =
+            moving.and_then(|(rings, table)| Some((rings, table.index_of(entity)?)))
+        {
+            let (start, end) = (rings.starts[i as usize], rings.starts[i as usize + 1]);
+            let slice = &rings.offsets[start as usize..end as usize];
             if slice.len() == slot.rings as usize && slice.iter().any(|o| *o != Vec3A::ZERO) {
                 ring_base = frame.ring_offsets.len() as u32;
                 frame

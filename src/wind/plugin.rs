@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use super::motion::{WindRig, associate, moved_bounds, ring_offsets, update_interval};
 use super::spring::{FixedStepper, Spring};
 use crate::culling::{ForestCulling, InstanceVisibility, MovedShapes};
-use crate::ecosystem::TreeInstance;
+use crate::instance::ForestInstances;
 use crate::schedule::SherwoodSystems;
 use crate::tree::{TreeModel, TreeModelsVersion};
 use crate::view::LodView;
@@ -49,7 +49,7 @@ impl Default for WindSettings {
     }
 }
 
-/// Ring offsets of every instance, in the order of [`ForestCulling::entities`]: instance
+/// Ring offsets of every instance, in the order of [`ForestInstances`]: instance
 /// `i`'s rings are `offsets[starts[i]..starts[i + 1]]`, in its model's ring order (model
 /// space). Instances that do not move have all-zero offsets.
 #[derive(Resource, Clone, Debug, Default)]
@@ -96,6 +96,7 @@ pub struct WindPlugin;
 
 impl Plugin for WindPlugin {
     fn finish(&self, app: &mut App) {
+        crate::schedule::warn_without_core(app, "WindPlugin");
         crate::schedule::require_plugin::<crate::tree::TreePlugin>(app, "WindPlugin", "TreePlugin");
         crate::schedule::require_plugin::<crate::culling::CullingPlugin>(
             app,
@@ -105,6 +106,7 @@ impl Plugin for WindPlugin {
     }
 
     fn build(&self, app: &mut App) {
+        crate::schedule::use_instance_table(app);
         crate::schedule::require_plugin::<AssetPlugin>(app, "WindPlugin", "Bevy's AssetPlugin");
         app.init_asset::<SpringSet>()
             .register_asset_loader(SpringSetLoader)
@@ -112,6 +114,7 @@ impl Plugin for WindPlugin {
             .register_type::<WindSettings>()
             .init_resource::<WindState>()
             .init_resource::<RingOffsetTable>()
+            .init_resource::<MovedShapes>()
             .init_resource::<WindStats>()
             .init_resource::<TreeModelsVersion>()
             .add_systems(Startup, load_default_set)
@@ -194,7 +197,7 @@ struct SetThisFrame {
 /// a lower rate keeps its offsets in between, and a still one is zeroed once.
 #[derive(Default)]
 struct WindCache {
-    /// `(culling layout version, models version)` the instances were laid out for.
+    /// `(instance layout version, models version)` the instances were laid out for.
     layout: Option<(u64, u64)>,
     /// `None` for an instance whose tree is missing (it never moves).
     instances: Vec<Option<InstanceWind>>,
@@ -207,41 +210,50 @@ struct WindCache {
 }
 
 impl WindCache {
-    /// Lays out the table for the culling's instances (all at rest).
+    /// Lays out the offset table for the instance table (every tree at rest).
     fn lay_out(
         &mut self,
-        entities: &[Entity],
-        instances: &Query<(&TreeInstance, &GlobalTransform)>,
+        instances: &ForestInstances,
         models: &Assets<TreeModel>,
         table: &mut RingOffsetTable,
     ) {
         self.instances.clear();
         table.offsets.clear();
         table.starts.clear();
-        for &entity in entities {
+        for i in 0..instances.len() {
             table.starts.push(table.offsets.len() as u32);
-            let laid = instances
-                .get(entity)
-                .ok()
-                .and_then(|(instance, transform)| {
-                    let model = models.get(&instance.model)?;
-                    table
-                        .offsets
-                        .resize(table.offsets.len() + model.rings.len(), Vec3A::ZERO);
-                    let (_, rotation, translation) = transform.to_scale_rotation_translation();
-                    Some(InstanceWind {
-                        model: instance.model.id(),
-                        motion: instance.motion,
-                        scale: instance.scale,
-                        rotation,
-                        translation,
-                        rig: UNRESOLVED,
-                        moving: false,
-                    })
-                });
+            let laid = instances.model_id(i).and_then(|id| {
+                let model = models.get(id)?;
+                table
+                    .offsets
+                    .resize(table.offsets.len() + model.rings.len(), Vec3A::ZERO);
+                let (_, rotation, translation) =
+                    instances.transforms[i].to_scale_rotation_translation();
+                Some(InstanceWind {
+                    model: id,
+                    motion: instances.motions[i],
+                    scale: instances.scales[i],
+                    rotation,
+                    translation,
+                    rig: UNRESOLVED,
+                    moving: false,
+                })
+            });
             self.instances.push(laid);
         }
         table.starts.push(table.offsets.len() as u32);
+    }
+
+    /// Follows the instances that moved (same layout).
+    fn follow_moves(&mut self, instances: &ForestInstances) {
+        for &i in instances.moved() {
+            if let Some(Some(wind)) = self.instances.get_mut(i as usize) {
+                let (_, rotation, translation) =
+                    instances.transforms[i as usize].to_scale_rotation_translation();
+                wind.rotation = rotation;
+                wind.translation = translation;
+            }
+        }
     }
 
     /// Forgets every rig (rules or models changed).
@@ -262,8 +274,9 @@ fn move_rings(
     settings: Res<WindSettings>,
     state: Res<WindState>,
     sets: Res<Assets<SpringSet>>,
-    mut culling: ResMut<ForestCulling>,
-    instances: Query<(&TreeInstance, &GlobalTransform)>,
+    culling: Res<ForestCulling>,
+    mut moved: ResMut<MovedShapes>,
+    instances: Res<ForestInstances>,
     models: Res<Assets<TreeModel>>,
     views: Query<&LodView>,
     mut table: ResMut<RingOffsetTable>,
@@ -274,12 +287,21 @@ fn move_rings(
     let start_time = std::time::Instant::now();
     let cache = &mut *cache;
     let table = &mut *table;
-    let layout = (culling.layout_version(), version.0);
+    let moved = &mut *moved;
+    let layout = (instances.layout_version(), version.0);
     if cache.layout != Some(layout) {
-        cache.lay_out(&culling.entities, &instances, &models, table);
-        culling.moved.clear();
+        cache.lay_out(&instances, &models, table);
+        moved.clear();
         cache.layout = Some(layout);
+    } else {
+        cache.follow_moves(&instances);
     }
+    // Last frame's visibility, when it is indexed like this frame's instances.
+    let visibility = if culling.layout_version() == Some(instances.layout_version()) {
+        &culling.result.visibility[..]
+    } else {
+        &[]
+    };
     // A rig is derived from a tree model and a set's rules: an edited (hot-reloaded) one
     // must not keep moving its rings the old way, not even for a held frame.
     let refresh = sets.is_changed() || version.is_changed() || settings.is_changed();
@@ -310,19 +332,12 @@ fn move_rings(
     cache.frame = cache.frame.wrapping_add(1);
     let view = views.iter().next();
     let mut counts = WindStats::default();
-    let ForestCulling {
-        entities,
-        result,
-        moved,
-        ..
-    } = &mut *culling;
-    for i in 0..entities.len().min(cache.instances.len()) {
+    for i in 0..cache.instances.len() {
         let Some(instance) = cache.instances[i].as_mut() else {
             continue;
         };
         let rings = table.starts[i] as usize..table.starts[i + 1] as usize;
-        let visible = result
-            .visibility
+        let visible = visibility
             .get(i)
             .is_some_and(|v| *v != InstanceVisibility::Invisible);
         let springs = cache

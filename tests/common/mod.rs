@@ -155,7 +155,11 @@ pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
 pub fn until_visible(app: &mut App) {
     for _ in 0..20_000 {
         app.update();
-        if app.world().resource::<LodDiagnostics>().visible_instances > 0 {
+        let loading = app
+            .world()
+            .resource::<bevy_sherwood::culling::ForestCulling>()
+            .models_loading();
+        if loading == 0 && app.world().resource::<LodDiagnostics>().visible_instances > 0 {
             return;
         }
         std::thread::sleep(std::time::Duration::from_millis(1));
