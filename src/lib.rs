@@ -15,10 +15,13 @@ pub mod tree;
 pub mod view;
 pub mod wind;
 
+mod core_plugin;
 mod rng;
 mod ron_file;
 
-pub use schedule::{SherwoodCorePlugin, SherwoodSystems};
+pub use core_plugin::SherwoodCorePlugin;
+pub use ron_file::FieldError;
+pub use schedule::SherwoodSystems;
 
 use bevy::app::{PluginGroup, PluginGroupBuilder};
 

@@ -1,5 +1,5 @@
-//! What every file format of the crate shares: how RON is read, and the read → UTF-8
-//! step of every text loader.
+//! What every file format of the crate shares: how RON is read, the read → UTF-8 step
+//! of every text loader, and the error for a value out of its range.
 
 use bevy::asset::io::Reader;
 
@@ -20,4 +20,24 @@ where
         Ok(text) => Ok(text),
         Err(error) => Err(error.utf8_error().into()),
     }
+}
+
+/// A value of a file that is out of its range or refers to nothing: which field, and what
+/// is wrong with it. Every RON format reports it the same way.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct FieldError {
+    /// The field, as a path into the file (`species[1].scale`, `springs[2].damping`).
+    pub field: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+/// A [`FieldError`] as the format's own error.
+pub(crate) fn invalid<E: From<FieldError>>(field: String, message: impl Into<String>) -> E {
+    FieldError {
+        field,
+        message: message.into(),
+    }
+    .into()
 }

@@ -1,5 +1,5 @@
 //! The ground every stage stands on: the [`SherwoodSystems`] sets that order the stages
-//! of a frame, and the plugin that configures them.
+//! of a frame, and the check that names a missing plugin.
 
 use bevy::ecs::schedule::SystemSet;
 use bevy::prelude::*;
@@ -30,41 +30,28 @@ pub enum SherwoodSystems {
     Stats,
 }
 
-/// Orders the [`SherwoodSystems`] sets and keeps the instance table
-/// ([`ForestInstances`](crate::instance::ForestInstances)). Every other Sherwood plugin
-/// relies on it; [`SherwoodPlugins`](crate::SherwoodPlugins) adds it first.
-#[derive(Default)]
-pub struct SherwoodCorePlugin;
-
-impl Plugin for SherwoodCorePlugin {
-    fn build(&self, app: &mut App) {
-        app.configure_sets(
-            PostUpdate,
-            (
-                SherwoodSystems::Instances,
-                SherwoodSystems::Animate,
-                SherwoodSystems::Cull,
-                SherwoodSystems::Value,
-                SherwoodSystems::Budget,
-                SherwoodSystems::DrawLists,
-                SherwoodSystems::Stats,
-            )
-                .chain()
-                .after(TransformSystems::Propagate),
-        );
-        app.init_resource::<crate::instance::ForestInstances>()
-            .add_systems(
-                PostUpdate,
-                crate::instance::track_instances.in_set(SherwoodSystems::Instances),
-            );
-        crate::view::build(app);
-        #[cfg(feature = "render")]
-        app.configure_sets(
-            PostUpdate,
-            SherwoodSystems::Instances
-                .after(bevy::camera::visibility::VisibilitySystems::UpdateFrusta),
-        );
-    }
+/// Chains the [`SherwoodSystems`] sets after transform propagation (and, with the
+/// `render` feature, after camera frusta update).
+pub(crate) fn configure_sets(app: &mut App) {
+    app.configure_sets(
+        PostUpdate,
+        (
+            SherwoodSystems::Instances,
+            SherwoodSystems::Animate,
+            SherwoodSystems::Cull,
+            SherwoodSystems::Value,
+            SherwoodSystems::Budget,
+            SherwoodSystems::DrawLists,
+            SherwoodSystems::Stats,
+        )
+            .chain()
+            .after(TransformSystems::Propagate),
+    );
+    #[cfg(feature = "render")]
+    app.configure_sets(
+        PostUpdate,
+        SherwoodSystems::Instances.after(bevy::camera::visibility::VisibilitySystems::UpdateFrusta),
+    );
 }
 
 /// Stops start-up with a message naming the missing plugin, instead of a missing-resource
@@ -78,24 +65,6 @@ pub(crate) fn require_plugin<P: Plugin>(app: &App, plugin: &str, needed: &str) {
             "bevy_sherwood: {plugin} needs {needed}, which is not added. `SherwoodPlugins` adds \
              every Sherwood plugin; Bevy's `AssetPlugin` comes with `DefaultPlugins`, or add \
              `AssetPlugin::default()` next to `MinimalPlugins` (before the Sherwood plugins)."
-        );
-    }
-}
-
-/// For a plugin that indexes the instance table, from its `build`: the table exists
-/// (empty) without [`SherwoodCorePlugin`], so the app runs; [`warn_without_core`] names
-/// the missing plugin once plugins are added.
-pub(crate) fn use_instance_table(app: &mut App) {
-    app.init_resource::<crate::instance::ForestInstances>();
-}
-
-/// From the `finish` of a plugin that indexes the instance table: nothing keeps the table
-/// without [`SherwoodCorePlugin`].
-pub(crate) fn warn_without_core(app: &App, plugin: &str) {
-    if !app.is_plugin_added::<SherwoodCorePlugin>() {
-        warn!(
-            "bevy_sherwood: {plugin} without SherwoodCorePlugin: no tree enters the instance \
-             table, so none is culled, budgeted or drawn by it"
         );
     }
 }

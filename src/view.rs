@@ -38,18 +38,10 @@ impl LodView {
     }
 }
 
-pub(crate) fn build(app: &mut App) {
-    app.register_type::<LodView>();
-    #[cfg(feature = "render")]
-    app.add_systems(
-        PostUpdate,
-        update_lod_views.before(crate::schedule::SherwoodSystems::Animate),
-    );
-}
-
-/// Keeps a [`LodView`] on every perspective 3D camera.
+/// Keeps a [`LodView`] on every perspective 3D camera (scheduled by the core plugin
+/// before the Sherwood stages).
 #[cfg(feature = "render")]
-fn update_lod_views(
+pub(crate) fn update_lod_views(
     mut commands: Commands,
     cameras: Query<
         (

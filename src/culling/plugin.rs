@@ -89,7 +89,7 @@ pub struct CullingPlugin;
 
 impl Plugin for CullingPlugin {
     fn build(&self, app: &mut App) {
-        crate::schedule::use_instance_table(app);
+        crate::core_plugin::use_instance_table(app);
         app.init_resource::<ForestCulling>()
             .init_resource::<CullingDebug>()
             .init_resource::<CullingSettings>()
@@ -106,7 +106,7 @@ impl Plugin for CullingPlugin {
     }
 
     fn finish(&self, app: &mut App) {
-        crate::schedule::warn_without_core(app, "CullingPlugin");
+        crate::core_plugin::warn_without_core(app, "CullingPlugin");
         crate::schedule::require_plugin::<crate::tree::TreePlugin>(
             app,
             "CullingPlugin",

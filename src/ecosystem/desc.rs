@@ -1,6 +1,7 @@
 //! The ecosystem file (`*.ecosystem.ron`, thesis chapter 3): materials, species with
 //! their global placement rules and hand-placed overrides, the terrain, and a seed.
 
+use crate::ron_file::invalid;
 use std::collections::BTreeMap;
 
 use bevy::math::{Affine3A, Vec3};
@@ -148,23 +149,11 @@ pub enum EcosystemError {
     #[error("{0}")]
     Ron(#[from] ron::error::SpannedError),
     /// A value is out of range or refers to nothing.
-    #[error("{field}: {message}")]
-    Invalid {
-        /// The field, as a path (`species[1].scale`).
-        field: String,
-        /// What is wrong.
-        message: String,
-    },
+    #[error("{0}")]
+    Invalid(#[from] crate::ron_file::FieldError),
     /// The terrain is malformed.
     #[error("{0}")]
     Terrain(#[from] TerrainError),
-}
-
-fn invalid(field: String, message: impl Into<String>) -> EcosystemError {
-    EcosystemError::Invalid {
-        field,
-        message: message.into(),
-    }
 }
 
 /// One instance ready to spawn.
@@ -236,7 +225,7 @@ impl EcosystemDesc {
         if self.species.is_empty() {
             return Err(invalid("species".into(), "needs at least one species"));
         }
-        let material = |field: String, name: &str| {
+        let material = |field: String, name: &str| -> Result<(), EcosystemError> {
             if self.materials.contains_key(name) {
                 Ok(())
             } else {

@@ -60,13 +60,13 @@ pub struct LodPlugin;
 
 impl Plugin for LodPlugin {
     fn finish(&self, app: &mut App) {
-        crate::schedule::warn_without_core(app, "LodPlugin");
+        crate::core_plugin::warn_without_core(app, "LodPlugin");
         crate::schedule::require_plugin::<crate::tree::TreePlugin>(app, "LodPlugin", "TreePlugin");
         crate::schedule::require_plugin::<crate::cost::CostPlugin>(app, "LodPlugin", "CostPlugin");
     }
 
     fn build(&self, app: &mut App) {
-        crate::schedule::use_instance_table(app);
+        crate::core_plugin::use_instance_table(app);
         app.register_type::<FrameBudget>()
             .register_type::<LodDiagnostics>()
             .init_resource::<FrameBudget>()

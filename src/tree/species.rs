@@ -5,6 +5,7 @@
 //!
 //! Species are described in RON (`*.species.ron`, see [`SpeciesDesc`]).
 
+use crate::ron_file::invalid;
 use core::f32::consts::TAU;
 
 use bevy::math::{Quat, Vec3};
@@ -161,13 +162,8 @@ pub enum SpeciesError {
     #[error("{0}")]
     Ron(#[from] ron::error::SpannedError),
     /// A value is out of its range.
-    #[error("{field}: {message}")]
-    Invalid {
-        /// The field, as a path (`levels[1].ring_vertices`).
-        field: String,
-        /// What is wrong with it.
-        message: String,
-    },
+    #[error("{0}")]
+    Invalid(#[from] crate::ron_file::FieldError),
     /// The generated meshes did not analyse: the generator made something the analysis
     /// refuses (with a validated description this is a bug in the generator).
     #[error("the generated tree does not analyse: {0}")]
@@ -189,13 +185,6 @@ pub struct GeneratedTree {
     pub leaf_normals: Vec<Vec3>,
     /// Leaf triangles.
     pub leaf_indices: Vec<u32>,
-}
-
-fn invalid(field: String, message: impl Into<String>) -> SpeciesError {
-    SpeciesError::Invalid {
-        field,
-        message: message.into(),
-    }
 }
 
 impl SpeciesDesc {

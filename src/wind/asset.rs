@@ -1,6 +1,7 @@
 //! Spring sets as assets (`*.wind.ron`): the springs a group of trees shares, the rules
 //! that associate their rings with the springs, and the motion level of detail.
 
+use crate::ron_file::invalid;
 use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, LoadContext};
 use bevy::prelude::*;
@@ -52,25 +53,13 @@ pub enum SpringSetError {
     #[error("{0}")]
     Ron(#[from] ron::error::SpannedError),
     /// A value is out of range.
-    #[error("{field}: {message}")]
-    Invalid {
-        /// The field (`springs[2].damping`).
-        field: String,
-        /// What is wrong.
-        message: String,
-    },
+    #[error("{0}")]
+    Invalid(#[from] crate::ron_file::FieldError),
 }
 
 /// The most a spring may be displaced at rest under its strongest wind, in world units:
 /// a push a thousand units long bends any tree flat.
 pub const MAX_WIND_DISPLACEMENT: f32 = 1000.0;
-
-fn invalid(field: String, message: impl Into<String>) -> SpringSetError {
-    SpringSetError::Invalid {
-        field,
-        message: message.into(),
-    }
-}
 
 impl SpringSet {
     /// Parses and validates a spring set (optional fields may be written bare).

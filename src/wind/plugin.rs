@@ -96,7 +96,7 @@ pub struct WindPlugin;
 
 impl Plugin for WindPlugin {
     fn finish(&self, app: &mut App) {
-        crate::schedule::warn_without_core(app, "WindPlugin");
+        crate::core_plugin::warn_without_core(app, "WindPlugin");
         crate::schedule::require_plugin::<crate::tree::TreePlugin>(app, "WindPlugin", "TreePlugin");
         crate::schedule::require_plugin::<crate::culling::CullingPlugin>(
             app,
@@ -106,7 +106,7 @@ impl Plugin for WindPlugin {
     }
 
     fn build(&self, app: &mut App) {
-        crate::schedule::use_instance_table(app);
+        crate::core_plugin::use_instance_table(app);
         crate::schedule::require_plugin::<AssetPlugin>(app, "WindPlugin", "Bevy's AssetPlugin");
         app.init_asset::<SpringSet>()
             .register_asset_loader(SpringSetLoader)
