@@ -7,10 +7,8 @@ mod common;
 #[path = "../examples/support/windowless.rs"]
 mod windowless;
 
-use bevy::camera::RenderTarget;
 use bevy::log::LogPlugin;
 use bevy::prelude::*;
-use bevy::render::render_resource::TextureFormat;
 use bevy_sherwood::cost::read_calibration;
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::{CalibrationProgress, CalibrationRunPlugin, CalibrationSettings};
@@ -38,16 +36,11 @@ fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
     let mut desc = common::default_ecosystem();
     desc.set_total_trees(60);
     common::spawn_forest(&mut app, desc);
-    let world = app.world_mut();
-    let image = Image::new_target_texture(320, 180, TextureFormat::Rgba8UnormSrgb, None);
-    let image = world.resource_mut::<Assets<Image>>().add(image);
-    world.spawn((
-        Camera3d::default(),
-        RenderTarget::Image(image.into()),
-        Msaa::Off,
-        Transform::from_xyz(-20.0, 25.0, -20.0).looking_at(Vec3::new(100.0, 0.0, 100.0), Vec3::Y),
-    ));
-    world.spawn(DirectionalLight::default());
+    common::image_camera(
+        &mut app,
+        Vec3::new(-20.0, 25.0, -20.0),
+        Vec3::new(100.0, 0.0, 100.0),
+    );
 
     let mut outcome = None;
     for _ in 0..3_000 {

@@ -10,6 +10,14 @@ use bevy_sherwood::prelude::*;
 
 const EYE: Vec3 = Vec3::new(-5.0, 20.0, -5.0);
 
+/// The default ecosystem with `trees` trees, its seed moved by `seed_offset`.
+fn other_forest(trees: u32, seed_offset: u64) -> bevy_sherwood::ecosystem::EcosystemDesc {
+    let mut desc = common::default_ecosystem();
+    desc.set_total_trees(trees);
+    desc.seed = desc.seed.wrapping_add(seed_offset);
+    desc
+}
+
 struct Scene {
     app: App,
     /// The second ecosystem's forest entity.
@@ -24,28 +32,11 @@ struct Scene {
 /// one tree placed by hand where the view looks.
 fn scene() -> Scene {
     let (mut app, size) = common::forest_of(600);
-    let mut second = common::default_ecosystem();
-    second.set_total_trees(40);
-    second.seed = second.seed.wrapping_add(1);
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<Ecosystem>>()
-        .add(Ecosystem(second));
-    let second = app.world_mut().spawn(Forest(handle)).id();
+    let second = common::spawn_forest(&mut app, other_forest(40, 1));
     let look_at = Vec3::new(size / 2.0, 0.0, size / 2.0);
     // Off the middle, which is a boundary of the hierarchy's cells.
     let target = look_at + Vec3::new(3.1, 0.0, 2.3);
-    let model = app
-        .world()
-        .resource::<AssetServer>()
-        .load("species/broad.species.ron");
-    let hand = app
-        .world_mut()
-        .spawn((
-            TreeInstance::new(model),
-            Transform::from_translation(target),
-        ))
-        .id();
+    let hand = common::plant(&mut app, "broad", target);
     common::look_from(&mut app, EYE, look_at);
     common::until_visible(&mut app);
     // Both forests spawned and every model loaded.
@@ -247,47 +238,18 @@ fn a_tree_with_a_fixed_draw_list_is_left_alone() {
 fn the_forest_pass_draws_every_producers_trees() {
     #[path = "../examples/support/windowless.rs"]
     mod windowless;
-    use bevy::camera::RenderTarget;
     use bevy::log::LogPlugin;
-    use bevy::render::render_resource::TextureFormat;
 
     let mut app = App::new();
     app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
         .add_plugins(SherwoodPlugins);
     windowless::finish_plugins(&mut app);
-    let mut forests = Vec::new();
-    for seed_offset in 0..2 {
-        let mut desc = common::default_ecosystem();
-        desc.set_total_trees(30);
-        desc.seed = desc.seed.wrapping_add(seed_offset);
-        let handle = app
-            .world_mut()
-            .resource_mut::<Assets<Ecosystem>>()
-            .add(Ecosystem(desc));
-        forests.push(app.world_mut().spawn(Forest(handle)).id());
-    }
+    let forests: Vec<Entity> = (0..2)
+        .map(|seed_offset| common::spawn_forest(&mut app, other_forest(30, seed_offset)))
+        .collect();
     let look_at = Vec3::new(100.0, 0.0, 100.0);
-    let model = app
-        .world()
-        .resource::<AssetServer>()
-        .load("species/broad.species.ron");
-    let hand = app
-        .world_mut()
-        .spawn((
-            TreeInstance::new(model),
-            Transform::from_translation(look_at),
-        ))
-        .id();
-    let world = app.world_mut();
-    let image = Image::new_target_texture(320, 180, TextureFormat::Rgba8UnormSrgb, None);
-    let image = world.resource_mut::<Assets<Image>>().add(image);
-    world.spawn((
-        Camera3d::default(),
-        RenderTarget::Image(image.into()),
-        Msaa::Off,
-        Transform::from_xyz(-20.0, 40.0, -20.0).looking_at(look_at, Vec3::Y),
-    ));
-    world.spawn(DirectionalLight::default());
+    let hand = common::plant(&mut app, "broad", look_at);
+    common::image_camera(&mut app, Vec3::new(-20.0, 40.0, -20.0), look_at);
 
     let drawing = |app: &mut App| {
         let mut query = app

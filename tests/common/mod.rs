@@ -94,12 +94,41 @@ pub fn unit_noise() -> impl FnMut() -> f32 {
 }
 
 /// Spawns a forest of `desc` in `app`.
-pub fn spawn_forest(app: &mut App, desc: bevy_sherwood::ecosystem::EcosystemDesc) {
+pub fn spawn_forest(app: &mut App, desc: bevy_sherwood::ecosystem::EcosystemDesc) -> Entity {
     let handle = app
         .world_mut()
         .resource_mut::<Assets<Ecosystem>>()
         .add(Ecosystem(desc));
-    app.world_mut().spawn(Forest(handle));
+    app.world_mut().spawn(Forest(handle)).id()
+}
+
+/// Plants one tree of the species file `species` (under `assets/species/`) at `at`, by
+/// hand: in no ecosystem.
+pub fn plant(app: &mut App, species: &str, at: Vec3) -> Entity {
+    let model = app
+        .world()
+        .resource::<AssetServer>()
+        .load(format!("species/{species}.species.ron"));
+    app.world_mut()
+        .spawn((TreeInstance::new(model), Transform::from_translation(at)))
+        .id()
+}
+
+/// A 320×180 camera rendering into an image from `eye` towards `target`, and a sun.
+#[cfg(feature = "render")]
+pub fn image_camera(app: &mut App, eye: Vec3, target: Vec3) {
+    use bevy::camera::RenderTarget;
+    use bevy::render::render_resource::TextureFormat;
+    let world = app.world_mut();
+    let image = Image::new_target_texture(320, 180, TextureFormat::Rgba8UnormSrgb, None);
+    let image = world.resource_mut::<Assets<Image>>().add(image);
+    world.spawn((
+        Camera3d::default(),
+        RenderTarget::Image(image.into()),
+        Msaa::Off,
+        Transform::from_translation(eye).looking_at(target, Vec3::Y),
+    ));
+    world.spawn(DirectionalLight::default());
 }
 
 /// A headless app with a forest of `trees` trees (the default forest's species, in equal
