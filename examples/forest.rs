@@ -70,8 +70,10 @@ usage: forest [OPTIONS]
   --width W --height H   window or image size (default 960x540)
   --record FILE.csv      one row per measured frame
   --summary              print one summary line at exit
-  --screenshot FILE.png  save a screenshot of measured frame K (with --at-frame K)
-  --at-frame K
+  --screenshot FILE.png  save a screenshot of measured frame K (with --at-frame K; with
+                         several frames, FILE-K.png for each)
+  --at-frame K[,K...]    the measured frames to take (default 0)
+  --no-hud               start with the HUD hidden (screenshots that compare images)
   --headless             render to an image, without a window
   --help                 this text
 
@@ -150,8 +152,10 @@ struct Options {
     height: u32,
     record: Option<String>,
     summary: bool,
-    screenshot: Option<(String, u32)>,
+    /// The file and the measured frames to take it at.
+    screenshot: Option<(String, Vec<u32>)>,
     headless: bool,
+    hud: bool,
 }
 
 impl Options {
@@ -159,6 +163,19 @@ impl Options {
     fn path_length(&self) -> Option<u32> {
         self.path.map(|p| self.path_frames.unwrap_or(p.frames()))
     }
+}
+
+/// `FILE.png` of measured frame `k`, when several are taken: `FILE-k.png`.
+fn screenshot_file(file: &str, k: u32) -> String {
+    let path = std::path::Path::new(file);
+    let stem = path
+        .file_stem()
+        .map_or_else(|| file.to_owned(), |s| s.to_string_lossy().into_owned());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}-{k}.{}", ext.to_string_lossy()),
+        None => format!("{stem}-{k}"),
+    };
+    path.with_file_name(name).to_string_lossy().into_owned()
 }
 
 fn parse(args: &[String]) -> Result<Options, String> {
@@ -187,6 +204,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         summary: false,
         screenshot: None,
         headless: false,
+        hud: true,
     };
     let mut at_frame = None;
     let mut screenshot = None;
@@ -263,7 +281,19 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--screenshot" => {
                 screenshot = Some(it.next().ok_or("--screenshot needs a file")?.clone());
             }
-            "--at-frame" => at_frame = Some(number("--at-frame", it.next())?),
+            "--at-frame" => {
+                let list = it.next().ok_or("--at-frame needs a frame")?;
+                let frames = list
+                    .split(',')
+                    .map(|k| {
+                        k.trim()
+                            .parse()
+                            .map_err(|_| format!("--at-frame: `{k}` is not a frame number"))
+                    })
+                    .collect::<Result<Vec<u32>, String>>()?;
+                at_frame = Some(frames);
+            }
+            "--no-hud" => o.hud = false,
             "--headless" => o.headless = true,
             "--help" | "-h" => return Err(String::new()),
             other => return Err(format!("unknown flag {other}")),
@@ -296,8 +326,8 @@ fn parse(args: &[String]) -> Result<Options, String> {
         return Err("--path-frames must be positive".into());
     }
     o.screenshot = match (screenshot, at_frame) {
-        (Some(file), Some(k)) => Some((file, k)),
-        (Some(file), None) => Some((file, 0)),
+        (Some(file), Some(frames)) => Some((file, frames)),
+        (Some(file), None) => Some((file, vec![0])),
         (None, Some(_)) => return Err("--at-frame needs --screenshot".into()),
         (None, None) => None,
     };
@@ -554,6 +584,7 @@ fn setup(
     hud.footer =
         "WASD/QE move, right drag look | +/- target  M mode  B strategy  N wind  C boxes  H hud"
             .into();
+    hud.visible = options.hud;
 }
 
 /// With every species failed there is nothing to draw, and the frame counter (which starts
@@ -776,14 +807,19 @@ fn measure(
     }
     let measured = index - options.warmup;
     let limit = options.frames.or(options.path_length());
-    if let Some((file, k)) = &options.screenshot
-        && measured == *k
+    if let Some((file, frames)) = &options.screenshot
+        && frames.contains(&measured)
     {
         let target = match &run.image {
             Some(image) => Screenshot::image(image.clone()),
             None => Screenshot::primary_window(),
         };
-        commands.spawn(target).observe(save_to_disk(file.clone()));
+        let file = if frames.len() > 1 {
+            screenshot_file(file, measured)
+        } else {
+            file.clone()
+        };
+        commands.spawn(target).observe(save_to_disk(file));
     }
     if limit.is_some_and(|n| measured >= n) {
         // The last frames' measurements are still in the pipeline: wait for them (a

@@ -361,6 +361,57 @@ fn points_cover_their_size_squared() {
     }
 }
 
+/// Large points are discs (the corners of their square stay empty) of the square's area,
+/// lit like the leaf they stand for.
+#[test]
+fn large_points_are_discs_of_their_squares_area() {
+    let model = species("slender");
+    let leaf = model.leaves.len() as u32 / 2;
+    let center = model.leaves[leaf as usize].center;
+    let size = 24;
+    let list = only(|l| {
+        l.leaf_points.push(PointRun {
+            leaves: leaf..leaf + 1,
+            size,
+        });
+    });
+    let (picture, _) = render(
+        "point_disc",
+        center + Vec3::new(0.0, 0.0, 5.0),
+        center,
+        move |world| {
+            spawn_tree(world, model, Some(list));
+        },
+    );
+    let lit: Vec<(u32, u32)> = (0..picture.height)
+        .flat_map(|y| (0..picture.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| picture.lit(x, y))
+        .collect();
+    let (x0, x1) = (
+        lit.iter().map(|p| p.0).min().unwrap(),
+        lit.iter().map(|p| p.0).max().unwrap(),
+    );
+    let (y0, y1) = (
+        lit.iter().map(|p| p.1).min().unwrap(),
+        lit.iter().map(|p| p.1).max().unwrap(),
+    );
+    let area = f64::from(size * size);
+    let covered = lit.len() as f64;
+    assert!(
+        (covered - area).abs() < 0.1 * area,
+        "a {size}-pixel point covers {covered} pixels"
+    );
+    // A square would fill its bounding box; a disc leaves π/4 of it, and its corners.
+    let bbox = f64::from((x1 - x0 + 1) * (y1 - y0 + 1));
+    assert!(
+        covered < 0.85 * bbox,
+        "{covered} of a {bbox}-pixel box: not round"
+    );
+    for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+        assert!(!picture.lit(x, y), "corner ({x}, {y}) of the point is lit");
+    }
+}
+
 fn cube(world: &mut World, at: Vec3) {
     let mesh = world
         .resource_mut::<Assets<Mesh>>()

@@ -100,6 +100,22 @@ struct FlatVertex {
     @location(0) @interpolate(flat) color: vec4<f32>,
 }
 
+struct PointVertex {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) @interpolate(flat) color: vec4<f32>,
+    // Where in the point's square, -1..1 on both axes (the disc is the unit circle).
+    @location(1) local: vec2<f32>,
+    // 1: a disc, 0: the whole square.
+    @location(2) @interpolate(flat) round: u32,
+}
+
+// Points of this many pixels and more are discs; smaller ones stay squares (a disc of one
+// or two pixels covers the same pixels, or none).
+const ROUND_FROM_SIZE: u32 = 3u;
+// A disc of the same area as a `size`-pixel square is `size · 2/√π` across, so the static
+// LOD's coverage (`area / size²` points) holds for round points too.
+const DISC_PER_SQUARE: f32 = 1.1283792;
+
 // Outside the clip volume on every axis: a triangle made of it covers nothing.
 const DEGENERATE: vec4<f32> = vec4<f32>(2.0, 2.0, 2.0, 1.0);
 
@@ -202,8 +218,10 @@ fn vs_lines(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_i
     let slot = chunk_slot(chunk, line);
     let instance = instances[slot.instance];
     let p = primitives[slot.primitive];
-    var a = view.clip_from_world * vec4<f32>(to_world(instance, p.a + ring_offset(instance, p.ring_a)), 1.0);
-    var b = view.clip_from_world * vec4<f32>(to_world(instance, p.b + ring_offset(instance, p.ring_b)), 1.0);
+    let world_a = to_world(instance, p.a + ring_offset(instance, p.ring_a));
+    let world_b = to_world(instance, p.b + ring_offset(instance, p.ring_b));
+    var a = view.clip_from_world * vec4<f32>(world_a, 1.0);
+    var b = view.clip_from_world * vec4<f32>(world_b, 1.0);
     // Reverse-Z: a point is in front of the near plane when z <= w. Clip the segment there
     // so that an end behind the camera does not flip the quad.
     let da = a.w - a.z;
@@ -233,13 +251,25 @@ fn vs_lines(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_i
     }
     let offset_ndc = across * 2.0 / size;
     out.clip = vec4<f32>(end.xy + offset_ndc * end.w, end.z, end.w);
-    out.color = vec4<f32>(instance.trunk.diffuse.rgb, 1.0);
+    // Lit as the trunk's cylinder is where it faces the eye: the normal across the segment
+    // towards the eye, so a line keeps the colour of the triangles it replaces.
+    let to_eye = eye_direction(0.5 * (world_a + world_b));
+    let axis = world_b - world_a;
+    var normal = to_eye;
+    if dot(axis, axis) > 1e-12 {
+        let unit = normalize(axis);
+        let across_eye = to_eye - unit * dot(to_eye, unit);
+        if dot(across_eye, across_eye) > 1e-12 {
+            normal = normalize(across_eye);
+        }
+    }
+    out.color = vec4<f32>(blinn_phong(instance.trunk, normal, to_eye), 1.0);
     return out;
 }
 
 @vertex
-fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_index: u32) -> FlatVertex {
-    var out: FlatVertex;
+fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_index: u32) -> PointVertex {
+    var out: PointVertex;
     let chunk = chunks[chunk_index];
     let point = vertex / 6u;
     if point >= chunk.count {
@@ -256,7 +286,14 @@ fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_
         return out;
     }
     let corner = quad_corner(vertex % 6u) - vec2<f32>(0.5);
-    let offset_ndc = corner * f32(chunk.param) * 2.0 / viewport_size();
+    var side = f32(chunk.param);
+    out.round = 0u;
+    if chunk.param >= ROUND_FROM_SIZE {
+        side = side * DISC_PER_SQUARE;
+        out.round = 1u;
+    }
+    out.local = corner * 2.0;
+    let offset_ndc = corner * side * 2.0 / viewport_size();
     out.clip = vec4<f32>(center.xy + offset_ndc * center.w, center.z, center.w);
     // Leaves are two-sided: light the side facing the eye.
     let to_eye = eye_direction(world);
@@ -266,6 +303,14 @@ fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_
     }
     out.color = vec4<f32>(blinn_phong(instance.leaves, normal, to_eye), 1.0);
     return out;
+}
+
+@fragment
+fn fs_points(in: PointVertex) -> @location(0) vec4<f32> {
+    if in.round != 0u && dot(in.local, in.local) > 1.0 {
+        discard;
+    }
+    return in.color;
 }
 
 @fragment

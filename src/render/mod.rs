@@ -491,7 +491,7 @@ impl SpecializedRenderPipeline for ForestPipeline {
             PrimitiveKind::TrunkTriangles => ("vs_triangles", "fs_lit", Some(Face::Back)),
             PrimitiveKind::LeafTriangles => ("vs_triangles", "fs_lit", None),
             PrimitiveKind::Lines => ("vs_lines", "fs_flat", None),
-            PrimitiveKind::Points => ("vs_points", "fs_flat", None),
+            PrimitiveKind::Points => ("vs_points", "fs_points", None),
         };
         RenderPipelineDescriptor {
             label: Some(format!("sherwood_forest_{:?}", key.kind).into()),
