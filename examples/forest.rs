@@ -14,6 +14,8 @@
 
 #[path = "support/frame_stats.rs"]
 mod frame_stats;
+#[path = "support/quality.rs"]
+mod quality;
 
 use std::io::Write;
 use std::time::Duration;
@@ -31,6 +33,7 @@ use bevy::winit::WinitPlugin;
 use bevy_sherwood::cost::{
     CalibrationChoice, CostModel, CostSettings, FrameClock, FrameSample, FrameSamples,
 };
+use bevy_sherwood::draw::Shading;
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestState, ForestTerrain};
 use bevy_sherwood::lod::StrategyKind;
 use bevy_sherwood::prelude::*;
@@ -74,6 +77,9 @@ usage: forest [OPTIONS]
                          several frames, FILE-K.png for each)
   --at-frame K[,K...]    the measured frames to take (default 0)
   --no-hud               start with the HUD hidden (screenshots that compare images)
+  --id-colors            draw each tree in its own flat colour on black, terrain hidden:
+                         screenshots whose pixels say which tree covers them (decode with
+                         the quality example); implies --no-hud
   --headless             render to an image, without a window
   --help                 this text
 
@@ -156,6 +162,7 @@ struct Options {
     screenshot: Option<(String, Vec<u32>)>,
     headless: bool,
     hud: bool,
+    id_colors: bool,
 }
 
 impl Options {
@@ -205,6 +212,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         screenshot: None,
         headless: false,
         hud: true,
+        id_colors: false,
     };
     let mut at_frame = None;
     let mut screenshot = None;
@@ -294,6 +302,10 @@ fn parse(args: &[String]) -> Result<Options, String> {
                 at_frame = Some(frames);
             }
             "--no-hud" => o.hud = false,
+            "--id-colors" => {
+                o.id_colors = true;
+                o.hud = false;
+            }
             "--headless" => o.headless = true,
             "--help" | "-h" => return Err(String::new()),
             other => return Err(format!("unknown flag {other}")),
@@ -447,6 +459,10 @@ fn main() -> AppExit {
     })
     .init_resource::<Run>()
     .add_systems(Startup, setup);
+    if options.id_colors {
+        app.insert_resource(ClearColor(Color::BLACK))
+            .add_systems(Update, (paint_trees_by_id, hide_terrain));
+    }
     if options.calibrate {
         app.add_plugins(CalibrationRunPlugin)
             .insert_resource(CalibrationSettings {
@@ -729,6 +745,44 @@ fn path_pose(path: CameraPath, t: f32, size: f32) -> (Vec2, Vec2) {
             let heading = Vec2::new((to - from).signum(), 0.25).normalize();
             (Vec2::new(x, z), heading)
         }
+    }
+}
+
+/// `--id-colors`: every tree in its own flat colour (ambient only, no light), the colour
+/// of [`quality::id_color`] of its index in the instance table.
+/// A tree painted by [`paint_trees_by_id`].
+#[derive(Component)]
+struct PaintedById;
+
+fn paint_trees_by_id(
+    mut commands: Commands,
+    table: Res<ForestInstances>,
+    painted: Query<(), With<PaintedById>>,
+) {
+    for (i, &entity) in table.entities.iter().enumerate() {
+        if painted.contains(entity) {
+            continue;
+        }
+        let color = quality::id_color(i as u32);
+        let flat = Shading {
+            ambient: Vec3::from(quality::linear(color)),
+            diffuse: Vec3::ZERO,
+            specular: Vec3::ZERO,
+            shininess: 1.0,
+        };
+        commands.entity(entity).insert((
+            TreeShading {
+                trunk: flat,
+                leaves: flat,
+            },
+            PaintedById,
+        ));
+    }
+}
+
+fn hide_terrain(mut terrain: Query<&mut Visibility, With<ForestTerrain>>) {
+    for mut visibility in &mut terrain {
+        *visibility = Visibility::Hidden;
     }
 }
 

@@ -132,7 +132,7 @@ impl core::ops::AddAssign for PrimitiveCounts {
 pub struct Shading {
     /// Colour without light.
     pub ambient: Vec3,
-    /// Colour under full light (also the flat colour of lines).
+    /// Colour under full light.
     pub diffuse: Vec3,
     /// Highlight colour.
     pub specular: Vec3,

@@ -1,0 +1,99 @@
+//! Image quality of one level-of-detail frame against the full-detail frame of the same
+//! view: structural similarity (SSIM) of the two pictures, and per tree the share of its
+//! full-detail pixels the LOD image still covers (from the forest example's
+//! `--id-colors` pictures of both), so that a dropped or hollowed tree shows even where
+//! the average error is small.
+//!
+//! ```sh
+//! cargo run --release --example quality -- FULL.png FULL-ID.png LOD.png LOD-ID.png
+//! ```
+//!
+//! Prints one line of `key=value` pairs (`scripts/quality.sh` gathers them): `ssim`
+//! (mean SSIM over 8×8 windows of the luma, 1 = identical), `trees` (trees with at least
+//! `MIN_PIXELS` pixels at full detail), `coverage_mean`, `coverage_p5`, `coverage_min`,
+//! and `below_95` (how many of those trees keep less than 95% of their pixels).
+
+#[path = "support/quality.rs"]
+mod quality;
+
+use std::collections::HashMap;
+use std::process::ExitCode;
+
+use image::RgbImage;
+use image_compare::Algorithm;
+
+/// Trees smaller than this at full detail are left out of the coverage figures: a few
+/// pixels of a distant tree move between frames for reasons other than its detail.
+const MIN_PIXELS: u32 = 30;
+
+fn open(path: &str) -> Result<RgbImage, String> {
+    image::open(path)
+        .map(|i| i.to_rgb8())
+        .map_err(|e| format!("{path}: {e}"))
+}
+
+/// Per tree: (pixels at full detail, of those the LOD image also gives to that tree).
+fn coverage(full: &RgbImage, lod: &RgbImage) -> HashMap<u32, (u32, u32)> {
+    let mut trees: HashMap<u32, (u32, u32)> = HashMap::new();
+    for (a, b) in full.pixels().zip(lod.pixels()) {
+        if let Some(tree) = quality::decode(a.0) {
+            let entry = trees.entry(tree).or_default();
+            entry.0 += 1;
+            if quality::decode(b.0) == Some(tree) {
+                entry.1 += 1;
+            }
+        }
+    }
+    trees
+}
+
+fn run(args: &[String]) -> Result<String, String> {
+    let [full, full_id, lod, lod_id] = args else {
+        return Err("usage: quality FULL.png FULL-ID.png LOD.png LOD-ID.png".into());
+    };
+    let (full, lod) = (open(full)?, open(lod)?);
+    let (full_id, lod_id) = (open(full_id)?, open(lod_id)?);
+    let size = full.dimensions();
+    if [lod.dimensions(), full_id.dimensions(), lod_id.dimensions()]
+        .iter()
+        .any(|d| *d != size)
+    {
+        return Err("the four pictures must have the same size".into());
+    }
+    let gray = |i: &RgbImage| image::DynamicImage::ImageRgb8(i.clone()).to_luma8();
+    let ssim = image_compare::gray_similarity_structure(
+        &Algorithm::MSSIMSimple,
+        &gray(&full),
+        &gray(&lod),
+    )
+    .map_err(|e| format!("SSIM: {e}"))?
+    .score;
+    let mut shares: Vec<f64> = coverage(&full_id, &lod_id)
+        .values()
+        .filter(|(pixels, _)| *pixels >= MIN_PIXELS)
+        .map(|&(pixels, kept)| f64::from(kept) / f64::from(pixels))
+        .collect();
+    shares.sort_by(f64::total_cmp);
+    let n = shares.len();
+    let mean = shares.iter().sum::<f64>() / n.max(1) as f64;
+    let p5 = shares.get(n / 20).copied().unwrap_or(1.0);
+    let min = shares.first().copied().unwrap_or(1.0);
+    let below = shares.iter().filter(|&&s| s < 0.95).count();
+    Ok(format!(
+        "ssim={ssim:.4} trees={n} coverage_mean={mean:.4} coverage_p5={p5:.4} coverage_min={min:.4} below_95={below}"
+    ))
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match run(&args) {
+        Ok(line) => {
+            println!("{line}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("{e}");
+            ExitCode::FAILURE
+        }
+    }
+}
