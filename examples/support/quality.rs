@@ -1,5 +1,9 @@
 //! Image quality at equal time: tree-ID colours (the forest example's `--id-colors`) and
 //! what the quality example measures with them.
+#![allow(
+    dead_code,
+    reason = "the forest example encodes, the quality example decodes"
+)]
 
 /// Distinct values per colour channel: 64³ − 1 trees can be told apart.
 const LEVELS: u32 = 64;
@@ -7,10 +11,6 @@ const LEVELS: u32 = 64;
 const STEP: u32 = 256 / LEVELS;
 
 /// The sRGB colour of instance `index` (black is no tree).
-#[allow(
-    dead_code,
-    reason = "the forest example encodes, the quality example decodes"
-)]
 pub fn id_color(index: u32) -> [u8; 3] {
     let id = index + 1;
     let channel = |shift: u32| (((id >> shift) % LEVELS) * STEP + STEP / 2) as u8;
@@ -18,10 +18,6 @@ pub fn id_color(index: u32) -> [u8; 3] {
 }
 
 /// The instance whose [`id_color`] is `rgb`, within a rounding; `None` for black.
-#[allow(
-    dead_code,
-    reason = "the forest example encodes, the quality example decodes"
-)]
 pub fn decode(rgb: [u8; 3]) -> Option<u32> {
     let level = |byte: u8| (u32::from(byte) / STEP).min(LEVELS - 1);
     let id = (level(rgb[0]) << 12) | (level(rgb[1]) << 6) | level(rgb[2]);
@@ -29,10 +25,6 @@ pub fn decode(rgb: [u8; 3]) -> Option<u32> {
 }
 
 /// The linear colour that an sRGB render target stores as `rgb`.
-#[allow(
-    dead_code,
-    reason = "the forest example encodes, the quality example decodes"
-)]
 pub fn linear(rgb: [u8; 3]) -> [f32; 3] {
     rgb.map(|byte| {
         let c = f32::from(byte) / 255.0;
