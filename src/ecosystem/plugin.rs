@@ -74,8 +74,6 @@ pub struct ForestState {
     pub instances: Vec<Entity>,
     /// The terrain entity.
     pub terrain: Option<Entity>,
-    /// Levels of the culling hierarchy asked for by the ecosystem.
-    pub culling_depth: u32,
     /// Incremented at every (re)spawn.
     pub generation: u32,
     spawned: bool,
@@ -166,7 +164,6 @@ fn spawn_forests(
             .iter()
             .map(|s| server.load::<TreeModel>(&s.tree))
             .collect();
-        state.culling_depth = ecosystem.culling_depth;
         if let Some(culling) = culling.as_deref_mut() {
             culling.depth = ecosystem.culling_depth;
         }
