@@ -222,6 +222,9 @@ fn a_tree_with_a_fixed_draw_list_is_left_alone() {
             Transform::from_translation(target + Vec3::Y * 10_000.0),
         ))
         .id();
+    // Without a list of its own it is drawn in full: nothing gives it an empty one.
+    let listless = common::plant(&mut app, "broad", target);
+    app.world_mut().entity_mut(listless).insert(FixedDrawList);
     app.update();
     app.update();
     assert_eq!(
@@ -229,6 +232,7 @@ fn a_tree_with_a_fixed_draw_list_is_left_alone() {
         None
     );
     assert_eq!(app.world().get::<TreeDrawList>(fixed), Some(&list));
+    assert_eq!(app.world().get::<TreeDrawList>(listless), None);
 }
 
 /// On a real adapter: a hand-placed tree and the trees of two ecosystems reach the forest

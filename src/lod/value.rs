@@ -12,7 +12,7 @@ use crate::budget::{ValueInputs, ValueModel};
 use crate::cost::CostModel;
 use crate::culling::{ForestCulling, InstanceVisibility};
 use crate::draw::{ModelSlot, TreeDrawList};
-use crate::instance::{ForestInstances, TreeInstance};
+use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::tree::{TreeModel, TreeModelsVersion};
 use crate::view::LodView;
 
@@ -73,7 +73,15 @@ pub(super) struct ModelInfo {
 
 pub(super) fn give_draw_lists(
     mut commands: Commands,
-    new: Query<Entity, (With<TreeInstance>, Without<TreeDrawList>)>,
+    // A tree with `FixedDrawList` and no list is drawn in full, as its docs promise.
+    new: Query<
+        Entity,
+        (
+            With<TreeInstance>,
+            Without<TreeDrawList>,
+            Without<FixedDrawList>,
+        ),
+    >,
 ) {
     for entity in &new {
         commands.entity(entity).insert(TreeDrawList::default());
