@@ -146,6 +146,7 @@ fn keywords_are_configurable_and_a_missing_trunk_is_an_error() {
     assert_eq!(as_trunk.model.trunk_triangle_count(), 18);
     let settings = GltfTreeSettings {
         leaf_keywords: vec!["green".into()],
+        ..Default::default()
     };
     assert_eq!(
         import_gltf(&bytes, &settings, &HashMap::new())
@@ -157,6 +158,7 @@ fn keywords_are_configurable_and_a_missing_trunk_is_an_error() {
     );
     let everything = GltfTreeSettings {
         leaf_keywords: vec!["".into(), "e".into()],
+        ..Default::default()
     };
     assert!(matches!(
         import_gltf(&bytes, &everything, &HashMap::new()),

@@ -176,8 +176,16 @@ pub enum AnalysisWarning {
     BranchAttachedFar {
         /// The branch's first ring.
         ring: u32,
-        /// Distance between its centre and its parent's.
+        /// Distance from its centre to the surface of the segment it hangs from.
         distance: f32,
+    },
+    /// Rings whose vertices do not close into a loop were kept as they are: a tube
+    /// thinner than the weld tolerance welds into a tangle (a generator's tiny twig).
+    IrregularRings {
+        /// How many.
+        count: usize,
+        /// The first one's centre.
+        position: Vec3,
     },
     /// Leaves of zero area: their point has an arbitrary normal.
     ZeroAreaLeaves {
@@ -186,13 +194,20 @@ pub enum AnalysisWarning {
     },
 }
 
-/// Settings of [`analyze`].
-#[derive(Clone, Debug, PartialEq)]
+/// Settings of [`analyze`]; glTF users set them through
+/// [`GltfTreeSettings::analysis`](crate::tree::GltfTreeSettings) (a `.meta` file beside
+/// the tree, or `AssetServer::load_with_settings`). Every field has a default, so a RON
+/// value names only what it changes: `(ground: -0.05)`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct AnalysisOptions {
     /// Vertices closer than this fraction of the model's bounding-box diagonal are the
-    /// same vertex. Default: `1e-5`.
+    /// same vertex: it joins UV-seam duplicates and a branch that continues its parent's
+    /// last ring. Default: `1e-5`.
     pub weld_tolerance: f32,
-    /// Height of the ground: vertices at or below it form root rings. Default: `0.0`.
+    /// Height of the ground, in the file's units: the open ends (or capped ends) at or
+    /// below it are root rings. A side branch that merely dips below it (a bush's) is
+    /// attached to its parent, not made a root. Default: `0.0`.
     pub ground: f32,
     /// Bark colour when the trunk mesh carries none. Default: a dark brown.
     pub default_bark_color: LinearRgb,
@@ -240,7 +255,7 @@ pub fn analyze(
     let mut welder = Welder::new(tolerance);
     let trunk_mesh = welder.weld(trunk, TreePart::Trunk, &mut warnings);
     let trunk_vertex_count = trunk_mesh.positions.len();
-    let hierarchy = Hierarchy::build(&trunk_mesh, options.ground, &mut warnings)?;
+    let hierarchy = Hierarchy::build(&trunk_mesh, options.ground, tolerance, &mut warnings)?;
 
     // Leaves weld in the same space: a leaf vertex landing on a trunk vertex touches it.
     let leaf_start = trunk_vertex_count as u32;
@@ -476,6 +491,11 @@ impl Adjacency {
 
 /// The ring hierarchy under construction (local trunk vertex indices).
 struct Hierarchy {
+    /// The weld tolerance (absolute).
+    tolerance: f32,
+    /// Rings whose vertices do not close (a tube welded into a tangle where it is
+    /// thinner than the tolerance): how many, and where the first is.
+    irregular: (usize, Option<Vec3>),
     rings: Vec<RingBuild>,
     vertex_ring: Vec<u32>,
     triangles: Vec<[u32; 3]>,
@@ -488,12 +508,55 @@ struct RingBuild {
     diameter: f32,
     parent: u32,
     level: u32,
+    /// The open end a separate piece was attached by: its link to the parent is no
+    /// surface, and nothing attaches near it.
+    piece_base: bool,
+}
+
+/// A closed piece of trunk no larger than this many weld tolerances (from its centre)
+/// is a speck of welded twig, attached where it lies, not an error.
+const SPECK_TOLERANCES: f32 = 100.0;
+
+/// Within its base radius of a piece's open base, an open end attaches to that piece
+/// only when its centre is within this fraction of the radius from the axis.
+const OPEN_BASE_AXIS: f32 = 0.25;
+
+/// Where an open end would attach: lower is better, surface distance first.
+#[derive(Clone, Copy, Debug)]
+struct Place {
+    /// Distance from the open end's centre to the segment's surface (0 inside it).
+    surface: f32,
+    /// Distance to the segment's axis over its radius there.
+    axis: f32,
+    /// The ring to hang from.
+    parent: u32,
+}
+
+impl Place {
+    const NONE: Self = Self {
+        surface: f32::INFINITY,
+        axis: f32::INFINITY,
+        parent: NO_RING,
+    };
+
+    fn better_than(&self, other: &Self) -> bool {
+        (self.surface, self.axis) < (other.surface, other.axis)
+    }
+
+    fn better(self, other: Self) -> Self {
+        if other.better_than(&self) {
+            other
+        } else {
+            self
+        }
+    }
 }
 
 impl Hierarchy {
     fn build(
         mesh: &WeldedMesh,
         ground: f32,
+        tolerance: f32,
         warnings: &mut Vec<AnalysisWarning>,
     ) -> Result<Self, TreeAnalysisError> {
         let n = mesh.positions.len();
@@ -504,14 +567,21 @@ impl Hierarchy {
             .collect();
         let adjacency = Adjacency::new(n, &triangles, 0);
         let mut h = Self {
+            tolerance,
+            irregular: (0, None),
             rings: Vec::new(),
             vertex_ring: vec![NO_RING; n],
             triangles,
         };
         let positions = &mesh.positions;
+        let boundary = boundary_loops(&h.triangles, n);
 
-        // Root rings: components of the vertices at or below the ground, among those a
-        // triangle uses (a stray vertex below the ground is no root).
+        // Root rings: among the vertices at or below the ground that a triangle uses (a
+        // stray vertex below the ground is no root), each connected part gives the open
+        // ends lying wholly in it (a tube cut below the ground), or, when it has none, is
+        // itself the ring (a capped end). A part that is neither is a branch dipping into
+        // the ground (a bush's side branch): it is no root, and its piece is attached by
+        // its open end below like any other.
         let used: Vec<bool> = {
             let mut u = vec![false; n];
             for t in &h.triangles {
@@ -529,89 +599,198 @@ impl Hierarchy {
                 .fold(f32::INFINITY, f32::min);
             return Err(TreeAnalysisError::NoRootRing { ground, lowest });
         }
-        let roots = components(
+        let mut on_open_end = vec![false; n];
+        for &v in boundary.iter().flatten() {
+            on_open_end[v as usize] = true;
+        }
+        let mut queue = Vec::new();
+        let mut not_a_ring = None;
+        for part in components(
             (0..n as u32).filter(|&v| below[v as usize] && used[v as usize]),
             &adjacency,
             |v| below[v as usize],
-        );
-        let mut queue = Vec::new();
-        for root in roots {
-            let ring = h.add_ring(root, NO_RING, positions, &adjacency)?;
-            queue.push(ring);
-        }
-        h.grow(&mut queue, positions, &adjacency)?;
-
-        // Separate pieces (branches modelled apart): attach each by its open end nearest to
-        // the rings found so far, nearest piece first, so branches of branches follow.
-        let boundary = boundary_loops(&h.triangles, n);
-        let centers: Vec<Vec3> = boundary
-            .iter()
-            .map(|lp| mean(lp.iter().map(|&v| positions[v as usize])))
-            .collect();
-        // Each open end's nearest ring so far, updated only against rings added since.
-        let mut nearest = vec![(f32::INFINITY, NO_RING); boundary.len()];
-        let mut rings_seen = 0;
-        loop {
-            let mut best: Option<usize> = None;
-            for (i, lp) in boundary.iter().enumerate() {
-                if lp.iter().any(|&v| h.vertex_ring[v as usize] != NO_RING) {
-                    continue;
+        ) {
+            let inside = |v: &u32| part.binary_search(v).is_ok();
+            let ends: Vec<&Vec<u32>> = boundary.iter().filter(|lp| lp.iter().all(inside)).collect();
+            if !ends.is_empty() {
+                for end in ends {
+                    queue.push(h.add_ring(end.clone(), NO_RING, positions, &adjacency));
                 }
-                for (r, ring) in h.rings.iter().enumerate().skip(rings_seen) {
-                    let d = ring.center.distance(centers[i]);
-                    if d < nearest[i].0 {
-                        nearest[i] = (d, r as u32);
-                    }
+                continue;
+            }
+            if part.iter().any(|&v| on_open_end[v as usize]) {
+                // Part of an open end, the rest of which stands above the ground. Should
+                // nothing else be a root, this part is what failed to be one.
+                if let Err(e) = ring_shape(&part, positions, &adjacency, tolerance) {
+                    not_a_ring.get_or_insert(e);
                 }
-                if best.is_none_or(|b| nearest[i].0 < nearest[b].0) {
-                    best = Some(i);
+                continue;
+            }
+            match ring_shape(&part, positions, &adjacency, tolerance) {
+                Ok(_) => queue.push(h.add_ring(part, NO_RING, positions, &adjacency)),
+                Err(e) => {
+                    not_a_ring.get_or_insert(e);
                 }
             }
-            rings_seen = h.rings.len();
-            let Some(i) = best else {
-                break;
-            };
-            let (distance, parent) = nearest[i];
-            let start = boundary[i].clone();
-            let ring = h.add_ring(start, parent, positions, &adjacency)?;
-            // A branch may start anywhere along a segment next to its parent ring.
-            let parent_ring = &h.rings[parent as usize];
-            let segment = h
-                .rings
+        }
+        if queue.is_empty() {
+            let lowest = (0..n)
+                .filter(|&v| used[v])
+                .map(|v| positions[v].y)
+                .fold(f32::INFINITY, f32::min);
+            return Err(not_a_ring.unwrap_or(TreeAnalysisError::NoRootRing { ground, lowest }));
+        }
+        h.grow(&mut queue, positions, &adjacency);
+        h.attach_pieces(&boundary, positions, &adjacency, tolerance, warnings);
+        // What is left has no open end. A speck (a twig thinner and shorter than a few
+        // hundred tolerances, welded shut) hangs where it is as one ring; anything larger
+        // floating apart from the tree is an error.
+        while let Some(v) = (0..n).find(|&v| used[v] && h.vertex_ring[v] == NO_RING) {
+            let piece = components([v as u32], &adjacency, |_| true).remove(0);
+            let center = mean(piece.iter().map(|&w| positions[w as usize]));
+            let extent = piece
                 .iter()
-                .filter(|r| r.parent == parent)
-                .map(|r| r.center.distance(parent_ring.center))
-                .chain((parent_ring.parent != NO_RING).then(|| {
-                    h.rings[parent_ring.parent as usize]
-                        .center
-                        .distance(parent_ring.center)
-                }))
+                .map(|&w| positions[w as usize].distance(center))
                 .fold(0.0, f32::max);
-            let reach = 2.0 * (parent_ring.diameter + h.rings[ring as usize].diameter) + segment;
-            if distance > reach.max(f32::EPSILON) {
-                warnings.push(AnalysisWarning::BranchAttachedFar { ring, distance });
+            if extent > SPECK_TOLERANCES * tolerance {
+                return Err(TreeAnalysisError::DetachedTrunkPiece {
+                    position: positions[v],
+                    vertices: piece.len(),
+                });
             }
-            queue.push(ring);
-            h.grow(&mut queue, positions, &adjacency)?;
+            let parent = h.best_place(center, tolerance).parent;
+            let ring = h.add_ring(piece, parent, positions, &adjacency);
+            h.rings[ring as usize].piece_base = true;
         }
-        if let Some(v) = (0..n).find(|&v| used[v] && h.vertex_ring[v] == NO_RING) {
-            let piece = components([v as u32], &adjacency, |_| true);
-            return Err(TreeAnalysisError::DetachedTrunkPiece {
-                position: positions[v],
-                vertices: piece.first().map_or(1, Vec::len),
-            });
+        if let (count, Some(position)) = h.irregular {
+            warnings.push(AnalysisWarning::IrregularRings { count, position });
         }
         Ok(h)
     }
 
-    /// Breadth-first: the unvisited neighbours of each ring, split into connected
-    /// components, are its child rings.
-    fn grow(
+    /// Attaches the separate pieces (branches modelled apart) by their open ends, nearest
+    /// first, so branches of branches follow their parents.
+    ///
+    /// An open end attaches where its centre meets the surface or the axis of what is
+    /// already attached: the nearest point on a segment, scored first by the distance to
+    /// the segment's surface (zero inside the tube), then by the distance to its axis
+    /// relative to its radius. Generators start a side branch inside its parent, often
+    /// a few centimetres from its siblings' bases, so the nearest *ring centre* is often a
+    /// sibling's base; the axis is not. A piece's open base is never a place to attach
+    /// to: neither the link from a piece to its parent (no surface) nor the first
+    /// segment of a piece within its base radius counts.
+    fn attach_pieces(
         &mut self,
-        queue: &mut Vec<u32>,
+        boundary: &[Vec<u32>],
         positions: &[Vec3],
         adjacency: &Adjacency,
-    ) -> Result<(), TreeAnalysisError> {
+        tolerance: f32,
+        warnings: &mut Vec<AnalysisWarning>,
+    ) {
+        let centers: Vec<Vec3> = boundary
+            .iter()
+            .map(|lp| mean(lp.iter().map(|&v| positions[v as usize])))
+            .collect();
+        // Each open end's best place so far, updated only against rings added since.
+        let mut best_place = vec![Place::NONE; boundary.len()];
+        let mut rings_seen = 0;
+        let mut queue = Vec::new();
+        loop {
+            let mut best: Option<usize> = None;
+            for (i, lp) in boundary.iter().enumerate() {
+                if lp.iter().any(|&v| self.vertex_ring[v as usize] != NO_RING) {
+                    continue;
+                }
+                for r in rings_seen..self.rings.len() {
+                    if let Some(place) = self.place_on_segment(r as u32, centers[i], tolerance)
+                        && place.better_than(&best_place[i])
+                    {
+                        best_place[i] = place;
+                    }
+                }
+                if best.is_none_or(|b| best_place[i].better_than(&best_place[b])) {
+                    best = Some(i);
+                }
+            }
+            rings_seen = self.rings.len();
+            let Some(i) = best else {
+                return;
+            };
+            let mut place = best_place[i];
+            if place.parent == NO_RING {
+                place = self.best_place(centers[i], tolerance);
+            }
+            let ring = self.add_ring(boundary[i].clone(), place.parent, positions, adjacency);
+            self.rings[ring as usize].piece_base = true;
+            let reach = 2.0
+                * (self.rings[place.parent as usize].diameter + self.rings[ring as usize].diameter);
+            if place.surface > reach.max(tolerance) {
+                warnings.push(AnalysisWarning::BranchAttachedFar {
+                    ring,
+                    distance: place.surface,
+                });
+            }
+            queue.push(ring);
+            self.grow(&mut queue, positions, adjacency);
+        }
+    }
+
+    /// The best place for `point` on any segment, or, when no segment takes it (nothing
+    /// but lone root rings), the nearest ring.
+    fn best_place(&self, point: Vec3, tolerance: f32) -> Place {
+        let on_segments = (0..self.rings.len() as u32)
+            .filter_map(|r| self.place_on_segment(r, point, tolerance))
+            .fold(Place::NONE, Place::better);
+        if on_segments.parent != NO_RING {
+            return on_segments;
+        }
+        self.rings
+            .iter()
+            .enumerate()
+            .map(|(r, ring)| Place {
+                surface: ring.center.distance(point),
+                axis: 0.0,
+                parent: r as u32,
+            })
+            .fold(Place::NONE, Place::better)
+    }
+
+    /// Where `point` meets the segment ending at ring `r`, if that segment is one a
+    /// piece may attach to.
+    fn place_on_segment(&self, r: u32, point: Vec3, tolerance: f32) -> Option<Place> {
+        let ring = &self.rings[r as usize];
+        if ring.parent == NO_RING || ring.piece_base {
+            return None;
+        }
+        let lower = &self.rings[ring.parent as usize];
+        let (a, axis) = (lower.center, ring.center - lower.center);
+        let length_squared = axis.length_squared();
+        let t = if length_squared > 0.0 {
+            ((point - a).dot(axis) / length_squared).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let to_axis = point.distance(a + t * axis);
+        let radius = 0.5 * (lower.diameter + t * (ring.diameter - lower.diameter));
+        // Near a piece's open base only what lies on its axis hangs from it (a twig
+        // starting at the base of its branch); a sibling starting beside it does not.
+        if lower.piece_base
+            && t * length_squared.sqrt() < 0.5 * lower.diameter
+            && to_axis > OPEN_BASE_AXIS * radius
+        {
+            return None;
+        }
+        let surface = (to_axis - radius).max(0.0);
+        Some(Place {
+            surface: if surface <= tolerance { 0.0 } else { surface },
+            axis: to_axis / radius.max(tolerance),
+            parent: if t < 0.5 { ring.parent } else { r },
+        })
+    }
+
+    /// Breadth-first: the unvisited neighbours of each ring, split into connected
+    /// components, are its child rings.
+    fn grow(&mut self, queue: &mut Vec<u32>, positions: &[Vec3], adjacency: &Adjacency) {
         let mut head = 0;
         let mut candidates = Vec::new();
         while head < queue.len() {
@@ -632,56 +811,36 @@ impl Hierarchy {
             for component in components(set.iter().copied(), adjacency, |w| {
                 set.binary_search(&w).is_ok()
             }) {
-                let child = self.add_ring(component, ring, positions, adjacency)?;
+                let child = self.add_ring(component, ring, positions, adjacency);
                 queue.push(child);
             }
         }
         queue.clear();
-        Ok(())
     }
 
-    /// Validates a loop of vertices as a ring and adds it.
+    /// Adds a set of vertices as a ring: its loop and cap centre if they close, all of
+    /// them as the loop (counted in [`Hierarchy::irregular`]) if they do not.
     fn add_ring(
         &mut self,
         vertices: Vec<u32>,
         parent: u32,
         positions: &[Vec3],
         adjacency: &Adjacency,
-    ) -> Result<u32, TreeAnalysisError> {
-        // Membership by binary search: a "ring" can be large (a ground plane exported with
-        // the tree lies below the ground too), and a linear search per neighbour made
-        // this quadratic in its vertices.
-        let mut sorted = vertices.clone();
-        sorted.sort_unstable();
-        let inside = |v: u32| sorted.binary_search(&v).is_ok();
-        let degree = |v: u32| adjacency.of(v).iter().filter(|&&w| inside(w)).count();
-        // A single hub joined to every other vertex is a cap's centre, not part of the loop
-        // (two such vertices are a quad with a diagonal: both belong to the loop).
-        let hubs: Vec<u32> = vertices
-            .iter()
-            .copied()
-            .filter(|&v| vertices.len() >= 4 && degree(v) == vertices.len() - 1)
-            .collect();
-        let (extra, loop_vertices): (Vec<u32>, Vec<u32>) = if hubs.len() == 1 {
-            vertices.iter().partition(|&&v| v == hubs[0])
-        } else {
-            (Vec::new(), vertices.clone())
-        };
-        let center = mean(loop_vertices.iter().map(|&v| positions[v as usize]));
-        if loop_vertices.len() > 1 {
-            let in_loop = |w: u32| inside(w) && !extra.contains(&w);
-            for &v in &loop_vertices {
-                let neighbours = adjacency.of(v).iter().filter(|&&w| in_loop(w)).count();
-                if neighbours < 2 {
-                    return Err(TreeAnalysisError::OpenRing {
-                        position: center,
-                        vertices: loop_vertices.len(),
-                        vertex: v,
-                        neighbours,
-                    });
-                }
+    ) -> u32 {
+        let RingShape {
+            loop_vertices,
+            extra,
+            center,
+        } = ring_shape(&vertices, positions, adjacency, self.tolerance).unwrap_or_else(|_| {
+            let center = mean(vertices.iter().map(|&v| positions[v as usize]));
+            self.irregular.0 += 1;
+            self.irregular.1.get_or_insert(center);
+            RingShape {
+                loop_vertices: vertices,
+                extra: Vec::new(),
+                center,
             }
-        }
+        });
         let diameter = 2.0
             * loop_vertices
                 .iter()
@@ -704,8 +863,9 @@ impl Hierarchy {
             diameter,
             parent,
             level,
+            piece_base: false,
         });
-        Ok(id)
+        id
     }
 
     fn into_model(
@@ -718,6 +878,7 @@ impl Hierarchy {
             rings: built,
             mut vertex_ring,
             triangles,
+            ..
         } = self;
         // Vertices no triangle uses belong to no ring; point them at ring 0 so per-vertex
         // ring lookups on the GPU stay in range.
@@ -868,6 +1029,69 @@ impl Hierarchy {
             leaf_color: options.default_leaf_color,
         })
     }
+}
+
+/// A set of vertices checked to be a closed ring: its loop, its cap's centre vertex (if
+/// any), and the loop's centre.
+struct RingShape {
+    loop_vertices: Vec<u32>,
+    extra: Vec<u32>,
+    center: Vec3,
+}
+
+/// Checks that `vertices` close into a ring (each loop vertex has two neighbours in it).
+///
+/// A ring no wider than a few weld tolerances is taken as it is: a tube tapering to a
+/// tip (EZ-Tree ends its twigs at radius 0.001) welds partly, into two or three vertices
+/// that cannot close, and is a point for every purpose of the model.
+fn ring_shape(
+    vertices: &[u32],
+    positions: &[Vec3],
+    adjacency: &Adjacency,
+    tolerance: f32,
+) -> Result<RingShape, TreeAnalysisError> {
+    // Membership by binary search: a "ring" can be large (a ground plane exported with
+    // the tree lies below the ground too), and a linear search per neighbour made
+    // this quadratic in its vertices.
+    let mut sorted = vertices.to_vec();
+    sorted.sort_unstable();
+    let inside = |v: u32| sorted.binary_search(&v).is_ok();
+    let degree = |v: u32| adjacency.of(v).iter().filter(|&&w| inside(w)).count();
+    // A single hub joined to every other vertex is a cap's centre, not part of the loop
+    // (two such vertices are a quad with a diagonal: both belong to the loop).
+    let hubs: Vec<u32> = vertices
+        .iter()
+        .copied()
+        .filter(|&v| vertices.len() >= 4 && degree(v) == vertices.len() - 1)
+        .collect();
+    let (extra, loop_vertices): (Vec<u32>, Vec<u32>) = if hubs.len() == 1 {
+        vertices.iter().partition(|&&v| v == hubs[0])
+    } else {
+        (Vec::new(), vertices.to_vec())
+    };
+    let center = mean(loop_vertices.iter().map(|&v| positions[v as usize]));
+    let microscopic = loop_vertices
+        .iter()
+        .all(|&v| positions[v as usize].distance(center) <= 2.0 * tolerance);
+    if loop_vertices.len() > 1 && !microscopic {
+        let in_loop = |w: u32| inside(w) && !extra.contains(&w);
+        for &v in &loop_vertices {
+            let neighbours = adjacency.of(v).iter().filter(|&&w| in_loop(w)).count();
+            if neighbours < 2 {
+                return Err(TreeAnalysisError::OpenRing {
+                    position: center,
+                    vertices: loop_vertices.len(),
+                    vertex: v,
+                    neighbours,
+                });
+            }
+        }
+    }
+    Ok(RingShape {
+        loop_vertices,
+        extra,
+        center,
+    })
 }
 
 /// Connected components of `seeds` through edges whose both ends satisfy `member`.

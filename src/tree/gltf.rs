@@ -19,7 +19,26 @@ use serde::{Deserialize, Serialize};
 use super::analyze::{AnalysisOptions, MeshData, TreeAnalysis, TreeAnalysisError, analyze};
 use super::model::{LinearRgb, TreeModel};
 
-/// How a glTF file is split into trunk and leaves.
+/// How a glTF file is split into trunk and leaves and analysed: the [`GltfTreeLoader`]'s
+/// settings.
+///
+/// Set them per file in a `.meta` file beside it (`bark.tree.glb.meta`):
+///
+/// ```ron
+/// (
+///     meta_format_version: "1.0",
+///     asset: Load(
+///         loader: "bevy_sherwood::tree::gltf::GltfTreeLoader",
+///         settings: (
+///             leaf_keywords: ["leaf", "frond"],
+///             analysis: (ground: -0.05, weld_tolerance: 1e-4),
+///         ),
+///     ),
+/// )
+/// ```
+///
+/// or in code with `AssetServer::load_with_settings`. Fields left out keep their
+/// defaults.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct GltfTreeSettings {
@@ -27,6 +46,14 @@ pub struct GltfTreeSettings {
     /// these (case-insensitive); otherwise it is trunk.
     /// Default: `["leaf", "leaves", "foliage", "needle"]`.
     pub leaf_keywords: Vec<String>,
+    /// A primitive is not part of the tree at all when its node's (or an ancestor
+    /// node's), mesh's or material's name contains one of these (case-insensitive):
+    /// supports and props exported with it, such as EZ-Tree's trellis.
+    /// Default: `["trellis"]`.
+    pub skip_keywords: Vec<String>,
+    /// The analysis' options: ground level, weld tolerance, default colours.
+    /// Default: [`AnalysisOptions::default`].
+    pub analysis: AnalysisOptions,
 }
 
 impl Default for GltfTreeSettings {
@@ -35,6 +62,8 @@ impl Default for GltfTreeSettings {
             leaf_keywords: ["leaf", "leaves", "foliage", "needle"]
                 .map(String::from)
                 .to_vec(),
+            skip_keywords: vec!["trellis".into()],
+            analysis: AnalysisOptions::default(),
         }
     }
 }
@@ -320,32 +349,44 @@ pub fn import_gltf(
         buffers.push(data);
     }
 
-    let keywords: Vec<String> = settings
-        .leaf_keywords
-        .iter()
-        .map(|k| k.to_lowercase())
-        .collect();
-    let is_leaf = |name: Option<&str>| {
+    let lower = |keywords: &[String]| -> Vec<String> {
+        keywords
+            .iter()
+            .map(|k| k.to_lowercase())
+            .filter(|k| !k.is_empty())
+            .collect()
+    };
+    let (leaf_keywords, skip_keywords) = (
+        lower(&settings.leaf_keywords),
+        lower(&settings.skip_keywords),
+    );
+    let matches = |keywords: &[String], name: Option<&str>| {
         name.is_some_and(|n| {
             let n = n.to_lowercase();
-            keywords
-                .iter()
-                .any(|k| !k.is_empty() && n.contains(k.as_str()))
+            keywords.iter().any(|k| n.contains(k.as_str()))
         })
     };
     let (mut trunk, mut leaves) = (Part::default(), Part::default());
     let mut primitives = 0;
-    let mut visit: Vec<(gltf::Node, Mat4)> =
+    // Each node with its world transform and whether an ancestor is skipped.
+    let mut visit: Vec<(gltf::Node, Mat4, bool)> =
         match gltf.default_scene().or_else(|| gltf.scenes().next()) {
-            Some(scene) => scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect(),
-            None => gltf.nodes().map(|n| (n, Mat4::IDENTITY)).collect(),
+            Some(scene) => scene.nodes().map(|n| (n, Mat4::IDENTITY, false)).collect(),
+            None => gltf.nodes().map(|n| (n, Mat4::IDENTITY, false)).collect(),
         };
-    while let Some((node, parent)) = visit.pop() {
+    while let Some((node, parent, skipped_above)) = visit.pop() {
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        visit.extend(node.children().map(|c| (c, world)));
+        let skipped = skipped_above || matches(&skip_keywords, node.name());
+        visit.extend(node.children().map(|c| (c, world, skipped)));
         let Some(mesh) = node.mesh() else { continue };
+        if skipped || matches(&skip_keywords, mesh.name()) {
+            continue;
+        }
         let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
         for primitive in mesh.primitives() {
+            if matches(&skip_keywords, primitive.material().name()) {
+                continue;
+            }
             let mesh_name = mesh.name().unwrap_or("(unnamed)").to_string();
             if primitive.mode() != gltf::mesh::Mode::Triangles {
                 return Err(GltfTreeError::NotTriangles {
@@ -354,9 +395,9 @@ pub fn import_gltf(
                 });
             }
             primitives += 1;
-            let leaf = is_leaf(node.name())
-                || is_leaf(mesh.name())
-                || is_leaf(primitive.material().name());
+            let leaf = matches(&leaf_keywords, node.name())
+                || matches(&leaf_keywords, mesh.name())
+                || matches(&leaf_keywords, primitive.material().name());
             let part = if leaf { &mut leaves } else { &mut trunk };
             use gltf::accessor::{DataType, Dimensions};
             let Some(position_accessor) = primitive.get(&gltf::Semantic::Positions) else {
@@ -442,7 +483,6 @@ pub fn import_gltf(
             keywords: settings.leaf_keywords.clone(),
         });
     }
-    let options = AnalysisOptions::default();
     let trunk_data = MeshData {
         positions: &trunk.positions,
         normals: Some(&trunk.normals),
@@ -455,7 +495,7 @@ pub fn import_gltf(
         indices: &leaves.indices,
         color: leaves.color(),
     };
-    Ok(analyze(&trunk_data, &leaf_data, &options)?)
+    Ok(analyze(&trunk_data, &leaf_data, &settings.analysis)?)
 }
 
 /// Loads `*.tree.glb` and `*.tree.gltf` files as [`TreeModel`]s.

@@ -393,9 +393,16 @@ impl SpeciesDesc {
 
     /// Generates and analyses the species.
     pub fn generate_and_analyze(&self) -> Result<TreeAnalysis, SpeciesError> {
+        self.generate_and_analyze_with(&AnalysisOptions::default())
+    }
+
+    /// Generates the species and analyses it with `options`.
+    pub fn generate_and_analyze_with(
+        &self,
+        options: &AnalysisOptions,
+    ) -> Result<TreeAnalysis, SpeciesError> {
         self.validate()?;
         let tree = self.generate();
-        let options = AnalysisOptions::default();
         let trunk = MeshData {
             positions: &tree.trunk_positions,
             normals: Some(&tree.trunk_normals),
@@ -408,7 +415,7 @@ impl SpeciesDesc {
             indices: &tree.leaf_indices,
             color: Some(self.leaf_color),
         };
-        Ok(analyze(&trunk, &leaves, &options)?)
+        Ok(analyze(&trunk, &leaves, options)?)
     }
 
     #[expect(clippy::too_many_arguments, reason = "recursion state")]

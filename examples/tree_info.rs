@@ -1,0 +1,290 @@
+//! Inspects a tree file: what the analysis made of it.
+//!
+//! ```sh
+//! cargo run --release --example tree_info -- FILE [--rings OUT.csv] [OPTIONS]
+//! ```
+//!
+//! FILE is a glTF tree (`.glb`, `.gltf`), a model (`.tree.ron`, `.tree.bin`) or a species
+//! (`.species.ron`, generated and analysed). Prints the rings, segments, leaves, leaf
+//! groups, the depth of the hierarchy and the analysis' warnings; exits non-zero with
+//! the error when the file is not a tree. See `--help` for the options.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use bevy_sherwood::tree::{
+    AnalysisWarning, GltfTreeSettings, NO_RING, SpeciesDesc, TreeModel, external_buffer_uris,
+    import_gltf,
+};
+
+const HELP: &str = "\
+tree_info FILE [--rings OUT.csv] [--ground Y] [--weld-tolerance T] [--leaf-keywords A,B,...]
+
+Loads a tree file and prints what the analysis found: rings, segments, leaves, leaf
+groups, the depth of the hierarchy, and warnings. Exits with status 1 and the analysis
+error when the file is not a tree, 2 on bad arguments.
+
+FILE               a glTF tree (.glb or .gltf, buffers embedded or beside it), a model
+                   (.tree.ron, .tree.bin), or a species (.species.ron: generated, then
+                   analysed)
+--rings OUT.csv    write every ring as CSV with the header
+                   ring,parent,x,y,z,radius,vertices
+                   ring: its index; parent: its parent's index, empty for a root;
+                   x,y,z: its centre and radius: its mean distance from the centre, in
+                   the file's own space and units (node transforms applied);
+                   vertices: the ring's distinct vertices (seam duplicates welded, so
+                   an EZ-Tree ring of S segments has S; a pointed tip has 1)
+--ground Y         glTF and species: the ground height; open ends at or below it are
+                   root rings (default 0)
+--weld-tolerance T glTF and species: vertices closer than T × the model's diagonal are
+                   one vertex (default 1e-5)
+--leaf-keywords L  glTF: comma-separated; a primitive whose node, mesh or material
+                   name contains one is leaves (default leaf,leaves,foliage,needle)
+";
+
+struct Args {
+    file: PathBuf,
+    rings: Option<PathBuf>,
+    settings: GltfTreeSettings,
+}
+
+fn parse_args(args: &[String]) -> Result<Args, String> {
+    let mut file = None;
+    let mut rings = None;
+    let mut settings = GltfTreeSettings::default();
+    let mut it = args.iter();
+    while let Some(arg) = it.next() {
+        let mut value = |name: &str| {
+            it.next()
+                .cloned()
+                .ok_or_else(|| format!("{name} needs a value"))
+        };
+        let number = |name: &str, text: String| {
+            text.parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("{name}: {text:?} is not a finite number"))
+        };
+        match arg.as_str() {
+            "--help" | "-h" => return Err(String::new()),
+            "--rings" => rings = Some(PathBuf::from(value("--rings")?)),
+            "--ground" => settings.analysis.ground = number("--ground", value("--ground")?)?,
+            "--weld-tolerance" => {
+                let t = number("--weld-tolerance", value("--weld-tolerance")?)?;
+                if t < 0.0 {
+                    return Err("--weld-tolerance must not be negative".into());
+                }
+                settings.analysis.weld_tolerance = t;
+            }
+            "--leaf-keywords" => {
+                settings.leaf_keywords = value("--leaf-keywords")?
+                    .split(',')
+                    .map(|k| k.trim().to_owned())
+                    .filter(|k| !k.is_empty())
+                    .collect();
+            }
+            flag if flag.starts_with("--") => return Err(format!("unknown option {flag}")),
+            path if file.is_none() => file = Some(PathBuf::from(path)),
+            extra => return Err(format!("unexpected argument {extra:?}")),
+        }
+    }
+    Ok(Args {
+        file: file.ok_or("no FILE given")?,
+        rings,
+        settings,
+    })
+}
+
+/// The model and the analysis' warnings (none for a saved model).
+fn load(
+    path: &Path,
+    settings: &GltfTreeSettings,
+) -> Result<(TreeModel, Vec<AnalysisWarning>), String> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    if name.ends_with(".glb") || name.ends_with(".gltf") {
+        let folder = path.parent().unwrap_or(Path::new("."));
+        let mut external = HashMap::new();
+        for uri in external_buffer_uris(&bytes).map_err(|e| e.to_string())? {
+            let data = std::fs::read(folder.join(&uri))
+                .map_err(|e| format!("buffer {uri:?} beside the file: {e}"))?;
+            external.insert(uri, data);
+        }
+        let analysis = import_gltf(&bytes, settings, &external).map_err(|e| e.to_string())?;
+        Ok((analysis.model, analysis.warnings))
+    } else if name.ends_with(".tree.bin") {
+        Ok((
+            TreeModel::from_binary(&bytes).map_err(|e| e.to_string())?,
+            Vec::new(),
+        ))
+    } else if name.ends_with(".tree.ron") {
+        let text = String::from_utf8(bytes).map_err(|e| format!("not UTF-8: {e}"))?;
+        Ok((
+            TreeModel::from_ron_str(&text).map_err(|e| e.to_string())?,
+            Vec::new(),
+        ))
+    } else if name.ends_with(".species.ron") {
+        let text = String::from_utf8(bytes).map_err(|e| format!("not UTF-8: {e}"))?;
+        let species = SpeciesDesc::from_ron_str(&text).map_err(|e| e.to_string())?;
+        let analysis = species
+            .generate_and_analyze_with(&settings.analysis)
+            .map_err(|e| e.to_string())?;
+        Ok((analysis.model, analysis.warnings))
+    } else {
+        Err(
+            "unknown kind of file: expected .glb, .gltf, .tree.ron, .tree.bin or .species.ron"
+                .into(),
+        )
+    }
+}
+
+/// Each ring's branch order: a root's chain is order 0, and a ring that is not its
+/// parent's thickest child starts a branch one order deeper.
+fn branch_orders(model: &TreeModel) -> Vec<u32> {
+    let mut order = vec![0_u32; model.rings.len()];
+    // Parents come before children in the analysis' ring order.
+    for (r, ring) in model.rings.iter().enumerate() {
+        if ring.parent == NO_RING {
+            continue;
+        }
+        let parent = &model.rings[ring.parent as usize];
+        let thickest = parent
+            .children
+            .iter()
+            .copied()
+            .max_by(|&a, &b| {
+                model.rings[a as usize]
+                    .diameter
+                    .total_cmp(&model.rings[b as usize].diameter)
+                    .then(b.cmp(&a))
+            })
+            .unwrap_or(r as u32);
+        order[r] = order[ring.parent as usize] + u32::from(thickest != r as u32);
+    }
+    order
+}
+
+fn report(path: &Path, model: &TreeModel, warnings: &[AnalysisWarning]) -> String {
+    let mut out = String::new();
+    let roots = model.roots().count();
+    let terminal = model.rings.iter().filter(|r| r.is_terminal()).count();
+    let ring_depth = model.rings.iter().map(|r| r.level).max().unwrap_or(0);
+    let orders = branch_orders(model);
+    let mut branches_per_order = vec![0_usize; orders.iter().max().map_or(1, |&o| o as usize + 1)];
+    for (r, ring) in model.rings.iter().enumerate() {
+        let starts_branch = ring.parent == NO_RING || orders[r] != orders[ring.parent as usize];
+        if starts_branch {
+            branches_per_order[orders[r] as usize] += 1;
+        }
+    }
+    let b = model.bounds;
+    let _ = writeln!(out, "{}", path.display());
+    let _ = writeln!(
+        out,
+        "rings        {} ({roots} root, {terminal} terminal), ring levels up to {ring_depth}",
+        model.rings.len()
+    );
+    let _ = writeln!(
+        out,
+        "segments     {} ({} trunk triangles, {:.2} total length)",
+        model.segments.len(),
+        model.trunk_triangle_count(),
+        model
+            .segments
+            .cumulative_length
+            .last()
+            .copied()
+            .unwrap_or(0.0)
+    );
+    let _ = writeln!(
+        out,
+        "branches     {} in {} orders (per order: {})",
+        branches_per_order.iter().sum::<usize>(),
+        branches_per_order.len(),
+        branches_per_order
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join("/")
+    );
+    let _ = writeln!(
+        out,
+        "leaves       {} ({} triangles) in {} groups",
+        model.leaves.len(),
+        model.leaf_triangle_count(),
+        model.leaf_groups.len()
+    );
+    let _ = writeln!(
+        out,
+        "bounds       ({:.3}, {:.3}, {:.3}) .. ({:.3}, {:.3}, {:.3})",
+        b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+    );
+    if warnings.is_empty() {
+        let _ = writeln!(out, "warnings     none");
+    }
+    for w in warnings {
+        let _ = writeln!(out, "warning      {w:?}");
+    }
+    out
+}
+
+fn rings_csv(model: &TreeModel) -> String {
+    let mut out = String::from("ring,parent,x,y,z,radius,vertices\n");
+    for (r, ring) in model.rings.iter().enumerate() {
+        let parent = if ring.parent == NO_RING {
+            String::new()
+        } else {
+            ring.parent.to_string()
+        };
+        let c = ring.center;
+        let _ = writeln!(
+            out,
+            "{r},{parent},{},{},{},{},{}",
+            c.x,
+            c.y,
+            c.z,
+            0.5 * ring.diameter,
+            ring.vertices.len()
+        );
+    }
+    out
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let args = match parse_args(&args) {
+        Ok(args) => args,
+        Err(e) if e.is_empty() => {
+            print!("{HELP}");
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            eprintln!("tree_info: {e}\n\n{HELP}");
+            return ExitCode::from(2);
+        }
+    };
+    let (model, warnings) = match load(&args.file, &args.settings) {
+        Ok(loaded) => loaded,
+        Err(e) => {
+            eprintln!("{}: {e}", args.file.display());
+            return ExitCode::FAILURE;
+        }
+    };
+    // Printed with `write!`: a closed pipe (`| head`) ends the output, not the program.
+    let mut stdout = std::io::stdout().lock();
+    let _ = write!(stdout, "{}", report(&args.file, &model, &warnings));
+    if let Some(out) = &args.rings {
+        if let Err(e) = std::fs::write(out, rings_csv(&model)) {
+            eprintln!("{}: cannot write: {e}", out.display());
+            return ExitCode::FAILURE;
+        }
+        let _ = writeln!(stdout, "rings written to {}", out.display());
+    }
+    ExitCode::SUCCESS
+}
