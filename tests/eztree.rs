@@ -10,7 +10,6 @@
 //! seeds and runs this test on them too, through `SHERWOOD_EZTREE_DIR`.
 #![cfg(feature = "gltf")]
 
-
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -66,11 +65,8 @@ fn branches_on_their_parent(model: &TreeModel, truth: &[TrueRing]) -> (usize, us
     for ring in truth {
         rings_of.entry(ring.branch).or_default().push(ring.center);
     }
-    let on_branch = |branch: usize, p: Vec3| {
-        rings_of[&branch]
-            .iter()
-            .any(|c| c.distance(p) <= tolerance)
-    };
+    let on_branch =
+        |branch: usize, p: Vec3| rings_of[&branch].iter().any(|c| c.distance(p) <= tolerance);
     let (mut right, mut total) = (0, 0);
     for (&branch, centers) in &rings_of {
         let Some(parent) = truth.iter().find(|r| r.branch == branch).unwrap().parent else {
@@ -89,10 +85,15 @@ fn branches_on_their_parent(model: &TreeModel, truth: &[TrueRing]) -> (usize, us
             let r = ring_at(*first_own);
             eprintln!(
                 "branch {branch} (parent {parent}) first ring {first_own} -> {:?}",
-                r.map(|r| (model.rings[r].center, model.rings[r].diameter, model.rings[r].parent, {
-                    let up = model.rings[r].parent;
-                    (up != NO_RING).then(|| model.rings[up as usize].center)
-                }))
+                r.map(|r| (
+                    model.rings[r].center,
+                    model.rings[r].diameter,
+                    model.rings[r].parent,
+                    {
+                        let up = model.rings[r].parent;
+                        (up != NO_RING).then(|| model.rings[up as usize].center)
+                    }
+                ))
             );
         }
         right += usize::from(hung_right);
@@ -135,28 +136,38 @@ fn cases() -> Vec<(PathBuf, PathBuf)> {
 fn eztree_exports_import_and_hang_branches_on_their_true_parent() {
     let cases = cases();
     assert!(cases.len() >= 4, "the shipped EZ-Tree trees are missing");
-    let mut report = Vec::new();
+    let (mut report, mut failures) = (Vec::new(), Vec::new());
     for (glb, csv) in &cases {
+        let name = glb.file_name().unwrap().to_string_lossy().into_owned();
         let bytes = std::fs::read(glb).unwrap_or_else(|e| panic!("{}: {e}", glb.display()));
-        let analysis = import_gltf(&bytes, &GltfTreeSettings::default(), &HashMap::new())
-            .unwrap_or_else(|e| panic!("{}: {e}", glb.display()));
+        let analysis = match import_gltf(&bytes, &GltfTreeSettings::default(), &HashMap::new()) {
+            Ok(analysis) => analysis,
+            Err(e) => {
+                failures.push(format!("{name}: {e}"));
+                continue;
+            }
+        };
         let model = &analysis.model;
         model.validate().unwrap();
-        assert_eq!(model.roots().count(), 1, "{}: one trunk", glb.display());
-        assert!(!model.leaves.is_empty(), "{}: leaves", glb.display());
+        let roots = model.roots().count();
+        if roots != 1 || model.leaves.is_empty() {
+            failures.push(format!(
+                "{name}: {roots} roots and {} leaves; one trunk with leaves expected",
+                model.leaves.len()
+            ));
+        }
         let (right, total) = branches_on_their_parent(model, &read_truth(csv));
         let share = right as f64 / total.max(1) as f64;
         report.push(format!(
-            "{}: {right}/{total} branches on their true parent ({:.1}%)",
-            glb.file_name().unwrap().to_string_lossy(),
+            "{name}: {right}/{total} branches on their true parent ({:.1}%)",
             100.0 * share
         ));
-        assert!(
-            share >= 0.95,
-            "{}: only {right} of {total} branches hang on their true parent\n{}",
-            glb.display(),
-            report.join("\n")
-        );
+        if share < 0.95 {
+            failures.push(format!(
+                "{name}: only {right} of {total} branches on their true parent"
+            ));
+        }
     }
     println!("{}", report.join("\n"));
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

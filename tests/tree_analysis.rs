@@ -622,3 +622,231 @@ fn bevy_meshes_analyse_like_plain_arrays() {
         ))
     ));
 }
+
+/// Trunk meshes built from [`tube`]s (open at the start, pointed at the end).
+mod separate_pieces {
+    use super::*;
+
+    fn straight(from: Vec3, to: Vec3, radius: f32, rings: usize) -> (Vec<Vec3>, Vec<f32>) {
+        let points = (0..rings)
+            .map(|i| from.lerp(to, i as f32 / (rings - 1) as f32))
+            .collect();
+        (points, vec![radius; rings])
+    }
+
+    fn add(tree: &mut GeneratedTree, (points, radii): (Vec<Vec3>, Vec<f32>), k: usize) {
+        tube(tree, &points, &radii, k, 0.0);
+    }
+
+    fn analyse(tree: &GeneratedTree) -> TreeAnalysis {
+        trunk_only(&tree.trunk_positions, &tree.trunk_indices).unwrap()
+    }
+
+    fn ring_at(m: &TreeModel, p: Vec3) -> usize {
+        m.rings
+            .iter()
+            .position(|r| r.center.distance(p) < 1e-4)
+            .unwrap_or_else(|| panic!("no ring at {p}"))
+    }
+
+    fn parent_center(m: &TreeModel, ring: usize) -> Vec3 {
+        m.rings[m.rings[ring].parent as usize].center
+    }
+
+    /// Two branches start inside the trunk on its axis, 2 cm apart, far from any trunk
+    /// ring: the nearest ring *centre* to the second is the first's base, but both hang
+    /// on the trunk (EZ-Tree's whorls).
+    #[test]
+    fn siblings_starting_side_by_side_both_hang_on_the_trunk() {
+        let mut tree = GeneratedTree::default();
+        add(
+            &mut tree,
+            straight(Vec3::new(0.0, -0.5, 0.0), Vec3::new(0.0, 4.0, 0.0), 0.3, 5),
+            8,
+        );
+        let a = Vec3::new(0.0, 2.3, 0.0);
+        let b = Vec3::new(0.0, 2.32, 0.0);
+        add(
+            &mut tree,
+            straight(a, a + Vec3::new(1.5, 0.6, 0.0), 0.08, 3),
+            5,
+        );
+        add(
+            &mut tree,
+            straight(b, b + Vec3::new(-1.2, 0.5, 0.8), 0.08, 3),
+            5,
+        );
+        let analysis = analyse(&tree);
+        let m = &analysis.model;
+        assert!(analysis.warnings.is_empty(), "{:?}", analysis.warnings);
+        for base in [a, b] {
+            let up = m.rings[ring_at(m, base)].parent as usize;
+            assert_eq!(
+                m.rings[up].vertices.len(),
+                8,
+                "the branch at {base} hangs on {}, not on a trunk ring",
+                m.rings[up].center
+            );
+        }
+        assert_eq!(m.roots().count(), 1);
+    }
+
+    /// A branch starting on its parent's surface attaches to the parent, not to a
+    /// sibling whose open base is closer.
+    #[test]
+    fn a_piece_never_attaches_to_another_piece_s_open_base() {
+        let mut tree = GeneratedTree::default();
+        add(
+            &mut tree,
+            straight(Vec3::new(0.0, -0.5, 0.0), Vec3::new(0.0, 4.0, 0.0), 0.3, 5),
+            8,
+        );
+        let a = Vec3::new(0.3, 2.3, 0.0);
+        let b = Vec3::new(0.3, 2.35, 0.02);
+        add(
+            &mut tree,
+            straight(a, a + Vec3::new(1.5, 0.2, 0.0), 0.1, 3),
+            5,
+        );
+        add(
+            &mut tree,
+            straight(b, b + Vec3::new(1.4, 0.6, 0.3), 0.1, 3),
+            5,
+        );
+        let m = analyse(&tree).model;
+        for base in [a, b] {
+            let up = parent_center(&m, ring_at(&m, base));
+            assert!(
+                up.x.abs() < 1e-4 && up.z.abs() < 1e-4,
+                "{base} hangs on {up}"
+            );
+        }
+    }
+
+    /// A bush: a short trunk whose side branches are tilted so far that part of their
+    /// base ring lies below the ground, and one twig droops with its tip into the ground.
+    /// Neither is a root; the tree has one.
+    #[test]
+    fn branches_and_tips_dipping_into_the_ground_are_no_roots() {
+        let mut tree = GeneratedTree::default();
+        add(
+            &mut tree,
+            straight(Vec3::ZERO, Vec3::new(0.0, 0.1, 0.0), 0.5, 4),
+            6,
+        );
+        let base = Vec3::new(0.0, 0.05, 0.0);
+        // Nearly flat: its base ring (radius 0.4) reaches below y = 0.
+        add(
+            &mut tree,
+            straight(base, Vec3::new(3.0, 0.6, 0.0), 0.4, 4),
+            6,
+        );
+        // A twig hanging down from the branch with its (thin) end in the ground.
+        let twig = Vec3::new(2.0, 0.4, 0.0);
+        add(
+            &mut tree,
+            (
+                vec![twig, Vec3::new(2.3, 0.1, 0.3), Vec3::new(2.5, -0.3, 0.5)],
+                vec![0.1, 0.06, 0.03],
+            ),
+            5,
+        );
+        let analysis = analyse(&tree);
+        let m = &analysis.model;
+        assert_eq!(
+            m.roots().count(),
+            1,
+            "{:?}",
+            m.roots()
+                .map(|r| m.rings[r as usize].center)
+                .collect::<Vec<_>>()
+        );
+        assert!(m.rings[m.roots().next().unwrap() as usize].center.length() < 1e-4);
+        let twig_up = parent_center(m, ring_at(m, twig));
+        assert!(
+            twig_up.y > 0.1,
+            "the twig hangs on the branch, not on {twig_up}"
+        );
+    }
+
+    /// A root capped by a fan (a centre vertex) or a flat polygon still stands: it is
+    /// the only end in the ground.
+    #[test]
+    fn capped_roots_still_stand() {
+        for fan in [true, false] {
+            let mut tree = GeneratedTree::default();
+            add(
+                &mut tree,
+                straight(Vec3::new(0.0, -0.5, 0.0), Vec3::new(0.0, 3.0, 0.0), 0.3, 4),
+                6,
+            );
+            if fan {
+                let hub = tree.trunk_positions.len() as u32;
+                tree.trunk_positions.push(Vec3::new(0.0, -0.5, 0.0));
+                tree.trunk_normals.push(Vec3::NEG_Y);
+                for j in 0..6 {
+                    tree.trunk_indices.extend([hub, (j + 1) % 6, j]);
+                }
+            } else {
+                for j in 1..5 {
+                    tree.trunk_indices.extend([0, j + 1, j]);
+                }
+            }
+            let m = analyse(&tree).model;
+            assert_eq!(m.roots().count(), 1, "fan: {fan}");
+            assert!((m.rings[0].center.y + 0.5).abs() < 1e-4);
+        }
+    }
+
+    /// A twig thinner than the weld tolerance at its tip welds into a tangle there, and
+    /// a whole speck of one welds shut: both are kept and reported, not errors.
+    #[test]
+    fn twigs_thinner_than_the_weld_tolerance_are_kept() {
+        let mut tree = GeneratedTree::default();
+        add(
+            &mut tree,
+            straight(Vec3::new(0.0, -0.5, 0.0), Vec3::new(0.0, 10.0, 0.0), 0.3, 5),
+            8,
+        );
+        // Tolerance: 1e-5 × a diagonal of about 10.5 → 1e-4, so a 7-vertex ring of
+        // radius 1e-4 welds in part, and the speck welds shut.
+        let twig = Vec3::new(0.0, 5.0, 0.0);
+        add(
+            &mut tree,
+            (
+                vec![
+                    twig,
+                    twig + Vec3::new(0.5, 0.2, 0.0),
+                    twig + Vec3::new(1.0, 0.4, 0.0),
+                ],
+                vec![0.05, 0.02, 1e-4],
+            ),
+            7,
+        );
+        let speck = Vec3::new(0.0, 7.0, 0.0);
+        add(
+            &mut tree,
+            (
+                vec![
+                    speck,
+                    speck + Vec3::new(1e-3, 0.0, 0.0),
+                    speck + Vec3::new(2e-3, 0.0, 0.0),
+                ],
+                vec![3e-5, 2e-5, 1e-5],
+            ),
+            5,
+        );
+        let trunk = MeshData {
+            positions: &tree.trunk_positions,
+            indices: &tree.trunk_indices,
+            ..Default::default()
+        };
+        let options = AnalysisOptions {
+            weld_tolerance: 1e-5,
+            ..Default::default()
+        };
+        let analysis = analyze(&trunk, &MeshData::default(), &options).unwrap();
+        analysis.model.validate().unwrap();
+        assert_eq!(analysis.model.roots().count(), 1);
+    }
+}

@@ -3,6 +3,7 @@
 // branch hierarchy as CSV, so the analysis can be checked against the truth.
 //
 //   cd scripts/eztree && npm install && node export.mjs OUT_DIR [PRESET[:SEED] ...]
+//   node export.mjs --list    (the preset names)
 //
 // With no preset, every shipped preset is exported at its own seed. Each preset P gives
 // OUT_DIR/P.tree.glb and OUT_DIR/P.branches.csv with the header
@@ -101,6 +102,10 @@ async function exportPreset(outDir, name, seed) {
 }
 
 const [outDir, ...args] = process.argv.slice(2);
+if (outDir === '--list') {
+  console.log(Object.keys(TreePreset).join('\n'));
+  process.exit(0);
+}
 if (!outDir) {
   console.error('usage: node export.mjs OUT_DIR [PRESET[:SEED] ...]');
   process.exit(2);

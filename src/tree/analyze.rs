@@ -218,7 +218,7 @@ pub struct AnalysisOptions {
 impl Default for AnalysisOptions {
     fn default() -> Self {
         Self {
-            weld_tolerance: 1e-5,
+            weld_tolerance: 1e-6,
             ground: 0.0,
             default_bark_color: [0.18, 0.11, 0.06],
             default_leaf_color: [0.12, 0.32, 0.08],
@@ -521,6 +521,10 @@ const SPECK_TOLERANCES: f32 = 100.0;
 /// only when its centre is within this fraction of the radius from the axis.
 const OPEN_BASE_AXIS: f32 = 0.25;
 
+/// A root ring thinner than this fraction of the thickest is no stem: it is a twig's end
+/// in the ground, and the twig is attached by its other end.
+const ROOT_FRACTION: f32 = 0.25;
+
 /// Where an open end would attach: lower is better, surface distance first.
 #[derive(Clone, Copy, Debug)]
 struct Place {
@@ -603,6 +607,34 @@ impl Hierarchy {
         for &v in boundary.iter().flatten() {
             on_open_end[v as usize] = true;
         }
+        // Each vertex's piece (connected part of the mesh), each open end's radius, and
+        // the widest open end of each piece.
+        let mut piece_of = vec![u32::MAX; n];
+        let mut pieces = 0;
+        for v in 0..n as u32 {
+            if piece_of[v as usize] == u32::MAX {
+                for w in components([v], &adjacency, |_| true).remove(0) {
+                    piece_of[w as usize] = pieces;
+                }
+                pieces += 1;
+            }
+        }
+        let end_radius: Vec<f32> = boundary
+            .iter()
+            .map(|lp| {
+                let center = mean(lp.iter().map(|&v| positions[v as usize]));
+                lp.iter()
+                    .map(|&v| positions[v as usize].distance(center))
+                    .sum::<f32>()
+                    / lp.len() as f32
+            })
+            .collect();
+        let mut widest_end = vec![0.0_f32; pieces as usize];
+        for (lp, &radius) in boundary.iter().zip(&end_radius) {
+            let piece = piece_of[lp[0] as usize] as usize;
+            widest_end[piece] = widest_end[piece].max(radius);
+        }
+        let mut candidates: Vec<(Vec<u32>, f32)> = Vec::new();
         let mut queue = Vec::new();
         let mut not_a_ring = None;
         for part in components(
@@ -611,10 +643,17 @@ impl Hierarchy {
             |v| below[v as usize],
         ) {
             let inside = |v: &u32| part.binary_search(v).is_ok();
-            let ends: Vec<&Vec<u32>> = boundary.iter().filter(|lp| lp.iter().all(inside)).collect();
+            let ends: Vec<usize> = (0..boundary.len())
+                .filter(|&e| boundary[e].iter().all(inside))
+                .collect();
             if !ends.is_empty() {
-                for end in ends {
-                    queue.push(h.add_ring(end.clone(), NO_RING, positions, &adjacency));
+                // A piece stands on its widest open end; a narrower one in the ground is
+                // a drooping twig's tip, and the twig is attached by its base instead.
+                for e in ends {
+                    let piece = piece_of[boundary[e][0] as usize] as usize;
+                    if end_radius[e] + tolerance >= widest_end[piece] {
+                        candidates.push((boundary[e].clone(), end_radius[e]));
+                    }
                 }
                 continue;
             }
@@ -626,11 +665,32 @@ impl Hierarchy {
                 }
                 continue;
             }
+            // No open end in it: a capped end (a fan around a centre, or a flat round
+            // polygon) is a root; a patch of a tube's side dipping into the ground (a
+            // drooping twig's middle) is neither.
             match ring_shape(&part, positions, &adjacency, tolerance) {
-                Ok(_) => queue.push(h.add_ring(part, NO_RING, positions, &adjacency)),
+                Ok(shape) if !shape.extra.is_empty() || is_flat_and_round(&part, positions) => {
+                    let radius = shape
+                        .loop_vertices
+                        .iter()
+                        .map(|&v| positions[v as usize].distance(shape.center))
+                        .sum::<f32>()
+                        / shape.loop_vertices.len() as f32;
+                    candidates.push((part, radius));
+                }
+                Ok(_) => {}
                 Err(e) => {
                     not_a_ring.get_or_insert(e);
                 }
+            }
+        }
+        // Stems stand side by side; a twig whose parent dips into the ground (a bush's)
+        // may stand there on its widest end too, but it is far thinner than the trunk,
+        // and is attached to its parent instead.
+        let thickest = candidates.iter().map(|c| c.1).fold(0.0, f32::max);
+        for (vertices, radius) in candidates {
+            if radius + tolerance >= ROOT_FRACTION * thickest {
+                queue.push(h.add_ring(vertices, NO_RING, positions, &adjacency));
             }
         }
         if queue.is_empty() {
@@ -1064,34 +1124,87 @@ fn ring_shape(
         .copied()
         .filter(|&v| vertices.len() >= 4 && degree(v) == vertices.len() - 1)
         .collect();
-    let (extra, loop_vertices): (Vec<u32>, Vec<u32>) = if hubs.len() == 1 {
-        vertices.iter().partition(|&&v| v == hubs[0])
-    } else {
-        (Vec::new(), vertices.to_vec())
+    // A hub is a cap's centre only if the rest closes without it; otherwise (a flat cap
+    // triangulated as a fan from one of its own rim vertices) it belongs to the loop.
+    let close = |extra: Vec<u32>| -> Result<RingShape, TreeAnalysisError> {
+        let loop_vertices: Vec<u32> = vertices
+            .iter()
+            .copied()
+            .filter(|v| !extra.contains(v))
+            .collect();
+        let center = mean(loop_vertices.iter().map(|&v| positions[v as usize]));
+        let microscopic = loop_vertices
+            .iter()
+            .all(|&v| positions[v as usize].distance(center) <= 2.0 * tolerance);
+        if loop_vertices.len() > 1 && !microscopic {
+            let in_loop = |w: u32| inside(w) && !extra.contains(&w);
+            for &v in &loop_vertices {
+                let neighbours = adjacency.of(v).iter().filter(|&&w| in_loop(w)).count();
+                if neighbours < 2 {
+                    return Err(TreeAnalysisError::OpenRing {
+                        position: center,
+                        vertices: loop_vertices.len(),
+                        vertex: v,
+                        neighbours,
+                    });
+                }
+            }
+        }
+        Ok(RingShape {
+            loop_vertices,
+            extra,
+            center,
+        })
     };
-    let center = mean(loop_vertices.iter().map(|&v| positions[v as usize]));
-    let microscopic = loop_vertices
-        .iter()
-        .all(|&v| positions[v as usize].distance(center) <= 2.0 * tolerance);
-    if loop_vertices.len() > 1 && !microscopic {
-        let in_loop = |w: u32| inside(w) && !extra.contains(&w);
-        for &v in &loop_vertices {
-            let neighbours = adjacency.of(v).iter().filter(|&&w| in_loop(w)).count();
-            if neighbours < 2 {
-                return Err(TreeAnalysisError::OpenRing {
-                    position: center,
-                    vertices: loop_vertices.len(),
-                    vertex: v,
-                    neighbours,
-                });
+    match hubs.as_slice() {
+        &[hub] => close(vec![hub]).or_else(|_| close(Vec::new())),
+        _ => close(Vec::new()),
+    }
+}
+
+/// Whether points spread like a flat disc: thin across their plane, and not much
+/// longer one way than the other within it (the principal axes of their covariance).
+fn is_flat_and_round(vertices: &[u32], positions: &[Vec3]) -> bool {
+    if vertices.len() < 3 {
+        return false;
+    }
+    let center = mean(vertices.iter().map(|&v| positions[v as usize]));
+    let mut covariance = [[0.0_f64; 3]; 3];
+    for &v in vertices {
+        let d = (positions[v as usize] - center).as_dvec3().to_array();
+        for i in 0..3 {
+            for j in 0..3 {
+                covariance[i][j] += d[i] * d[j];
             }
         }
     }
-    Ok(RingShape {
-        loop_vertices,
-        extra,
-        center,
-    })
+    let [small, middle, large] = symmetric_eigenvalues(covariance);
+    large > 0.0 && small <= 0.01 * middle && middle >= 0.25 * large
+}
+
+/// Eigenvalues of a symmetric 3×3 matrix, smallest first (the trigonometric solution of
+/// its characteristic cubic).
+fn symmetric_eigenvalues(a: [[f64; 3]; 3]) -> [f64; 3] {
+    let off = a[0][1].powi(2) + a[0][2].powi(2) + a[1][2].powi(2);
+    let mut e = if off == 0.0 {
+        [a[0][0], a[1][1], a[2][2]]
+    } else {
+        let q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+        let p =
+            (((a[0][0] - q).powi(2) + (a[1][1] - q).powi(2) + (a[2][2] - q).powi(2) + 2.0 * off)
+                / 6.0)
+                .sqrt();
+        let b = |i: usize, j: usize| (a[i][j] - if i == j { q } else { 0.0 }) / p;
+        let det = b(0, 0) * (b(1, 1) * b(2, 2) - b(1, 2) * b(2, 1))
+            - b(0, 1) * (b(1, 0) * b(2, 2) - b(1, 2) * b(2, 0))
+            + b(0, 2) * (b(1, 0) * b(2, 1) - b(1, 1) * b(2, 0));
+        let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+        let largest = q + 2.0 * p * phi.cos();
+        let smallest = q + 2.0 * p * (phi + 2.0 * core::f64::consts::PI / 3.0).cos();
+        [largest, 3.0 * q - largest - smallest, smallest]
+    };
+    e.sort_by(f64::total_cmp);
+    e
 }
 
 /// Connected components of `seeds` through edges whose both ends satisfy `member`.
