@@ -458,20 +458,22 @@ pub fn import_gltf(
                 }
                 None => part.indices.extend(first..first + vertices as u32),
             }
+            // A textured material's factor only tints its texture (EZ-Tree's leaves are
+            // white times a leaf picture), so it says nothing of the colour: such
+            // primitives leave the part to the untextured ones or the default colour.
             // glTF keeps colours within 0–1; the `gltf` crate does not check.
-            let [r, g, b, _] = primitive
-                .material()
-                .pbr_metallic_roughness()
-                .base_color_factor()
-                .map(|c| {
+            let pbr = primitive.material().pbr_metallic_roughness();
+            if pbr.base_color_texture().is_none() {
+                let [r, g, b, _] = pbr.base_color_factor().map(|c| {
                     if c.is_finite() {
                         c.clamp(0.0, 1.0)
                     } else {
                         1.0
                     }
                 });
-            part.color_sum += Vec3::new(r, g, b) * positions.len() as f32;
-            part.color_weight += positions.len() as f32;
+                part.color_sum += Vec3::new(r, g, b) * positions.len() as f32;
+                part.color_weight += positions.len() as f32;
+            }
             part.positions.extend(positions);
         }
     }
