@@ -45,6 +45,7 @@ FILE               a glTF tree (.glb or .gltf, buffers embedded or beside it), a
                    name contains one is leaves (default leaf,leaves,foliage,needle)
 ";
 
+#[derive(Debug)]
 struct Args {
     file: PathBuf,
     rings: Option<PathBuf>,
@@ -287,4 +288,76 @@ fn main() -> ExitCode {
         let _ = writeln!(stdout, "rings written to {}", out.display());
     }
     ExitCode::SUCCESS
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> TreeModel {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/trees/eztree/aspen_small.tree.glb");
+        load(&path, &GltfTreeSettings::default()).unwrap().0
+    }
+
+    #[test]
+    fn rings_csv_has_the_documented_header_and_one_row_per_ring() {
+        let model = model();
+        let csv = rings_csv(&model);
+        let mut lines = csv.lines();
+        assert_eq!(lines.next(), Some("ring,parent,x,y,z,radius,vertices"));
+        let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+        assert_eq!(rows.len(), model.rings.len());
+        for (r, row) in rows.iter().enumerate() {
+            assert_eq!(row.len(), 7);
+            assert_eq!(row[0], r.to_string());
+            let ring = &model.rings[r];
+            assert_eq!(row[1].is_empty(), ring.parent == NO_RING);
+            let radius: f32 = row[5].parse().unwrap();
+            assert!((radius - 0.5 * ring.diameter).abs() < 1e-6);
+            assert_eq!(row[6], ring.vertices.len().to_string());
+        }
+        // EZ-Tree's Aspen Small: 8 segments per trunk ring, welded from 9 with the seam copy.
+        assert_eq!(rows[0][6], "8");
+    }
+
+    #[test]
+    fn a_generator_tree_has_as_many_branch_orders_as_levels() {
+        // Aspen Small: trunk and two levels of branches.
+        let model = model();
+        let orders = branch_orders(&model);
+        assert_eq!(orders.iter().max(), Some(&2));
+        let text = report(Path::new("aspen"), &model, &[]);
+        assert!(
+            text.contains("branches     20 in 3 orders (per order: 1/7/12)"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn options_and_bad_arguments() {
+        let args = |a: &[&str]| parse_args(&a.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+        let parsed = args(&[
+            "t.glb",
+            "--ground",
+            "-0.5",
+            "--leaf-keywords",
+            "frond, leaf",
+            "--rings",
+            "o.csv",
+        ])
+        .unwrap();
+        assert_eq!(parsed.settings.analysis.ground, -0.5);
+        assert_eq!(parsed.settings.leaf_keywords, ["frond", "leaf"]);
+        assert_eq!(parsed.rings.as_deref(), Some(Path::new("o.csv")));
+        assert!(args(&[]).unwrap_err().contains("no FILE"));
+        assert!(
+            args(&["t.glb", "--ground", "x"])
+                .unwrap_err()
+                .contains("--ground")
+        );
+        assert!(args(&["t.glb", "--weld-tolerance", "-1"]).is_err());
+        assert!(args(&["t.glb", "--bogus"]).unwrap_err().contains("--bogus"));
+        assert!(load(Path::new("tree.obj"), &GltfTreeSettings::default()).is_err());
+    }
 }

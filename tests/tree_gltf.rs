@@ -204,6 +204,69 @@ fn tree_glb_files_load_through_the_asset_server() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
+/// The loader's settings, analysis options included, come from a `.meta` file beside the
+/// tree, as `GltfTreeSettings`' documentation shows.
+#[test]
+fn meta_files_set_the_keywords_and_the_analysis_options() {
+    use bevy::asset::LoadState;
+    use bevy::prelude::*;
+
+    let dir = std::env::temp_dir().join(format!("sherwood-gltf-meta-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let meta = |settings: &str| {
+        format!(
+            "(meta_format_version: \"1.0\", asset: Load(loader: \"bevy_sherwood::tree::gltf::GltfTreeLoader\", settings: {settings}))"
+        )
+    };
+    // "Greens" is no default leaf keyword: only the meta file makes the quad a leaf.
+    for name in ["plain", "green", "sunk"] {
+        std::fs::write(
+            dir.join(format!("{name}.tree.glb")),
+            glb(Vec3::ZERO, "Greens"),
+        )
+        .unwrap();
+    }
+    std::fs::write(
+        dir.join("green.tree.glb.meta"),
+        meta("(leaf_keywords: [\"green\"])"),
+    )
+    .unwrap();
+    // The trunk's lowest ring is at y = -0.5: with the ground below it there is no root.
+    std::fs::write(
+        dir.join("sunk.tree.glb.meta"),
+        meta("(analysis: (ground: -1.0))"),
+    )
+    .unwrap();
+    let mut app = common::tree_app(&dir);
+    let load = |app: &mut App, name: &str| {
+        let handle: Handle<TreeModel> = app
+            .world()
+            .resource::<AssetServer>()
+            .load(format!("{name}.tree.glb"));
+        let state = common::settle(app, &handle);
+        (
+            state,
+            app.world()
+                .resource::<Assets<TreeModel>>()
+                .get(&handle)
+                .map(|m| m.leaves.len()),
+        )
+    };
+    assert!(matches!(
+        load(&mut app, "plain"),
+        (LoadState::Loaded, Some(0))
+    ));
+    assert!(matches!(
+        load(&mut app, "green"),
+        (LoadState::Loaded, Some(1))
+    ));
+    match load(&mut app, "sunk") {
+        (LoadState::Failed(e), None) => assert!(e.to_string().contains("no root ring"), "{e}"),
+        other => panic!("{other:?}"),
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}
+
 /// Files that break what glTF promises get an error naming the mesh and accessor, never
 /// a panic inside the `gltf` crate (whose readers assume a valid file).
 #[test]
