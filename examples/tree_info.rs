@@ -336,7 +336,7 @@ mod tests {
 
     #[test]
     fn options_and_bad_arguments() {
-        let args = |a: &[&str]| parse_args(&a.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+        let args = |a: &[&str]| parse_args(&a.iter().map(ToString::to_string).collect::<Vec<_>>());
         let parsed = args(&[
             "t.glb",
             "--ground",

@@ -1,5 +1,5 @@
 //! Trees from EZ-Tree (npm `@dgreenheck/ez-tree`, MIT), exported by
-//! `scripts/eztree/export.mjs` with three.js's GLTFExporter as its web app does: every
+//! `scripts/eztree/export.mjs` with three.js's `GLTFExporter` as its web app does: every
 //! branch a separate open tube starting inside its parent, continuations welded to
 //! their parent's last ring, bushes dipping below the ground. Each file comes with the
 //! generator's own branch hierarchy (`*.branches.csv`), and the analysis must hang at
