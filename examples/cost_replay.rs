@@ -69,6 +69,8 @@ fn run() -> Result<(), String> {
         col("cal_triangle_pixels_ms")?,
         col("cal_lines_ms")?,
         col("cal_points_ms")?,
+        // Records of scenes without ladder entities have no mesh column.
+        col("cal_meshes_ms").unwrap_or_else(|_| vec![0.0; visible.len()]),
     ];
     let mut model = CostModel::new(calibration.scaled(scale), FrameOverlap::PIPELINED, rates);
     let mut arriving = VecDeque::new();
@@ -79,6 +81,7 @@ fn run() -> Result<(), String> {
             triangle_pixels: family[1][i] as f32 / 1000.0,
             lines: family[2][i] as f32 / 1000.0,
             points: family[3][i] as f32 / 1000.0,
+            meshes: family[4][i] as f32 / 1000.0,
         };
         let logic_time = model.logic_time(visible[i] as u32);
         let render_time = model.render_time(&calibrated);

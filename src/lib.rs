@@ -7,6 +7,8 @@ pub mod culling;
 pub mod draw;
 pub mod ecosystem;
 pub mod instance;
+#[cfg(feature = "render")]
+pub mod ladder;
 pub mod lod;
 #[cfg(feature = "render")]
 pub mod render;
@@ -34,6 +36,11 @@ pub mod prelude {
     pub use crate::draw::{TreeDrawList, TreeShading};
     pub use crate::ecosystem::{Ecosystem, EcosystemPlugin, Forest};
     pub use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
+    #[cfg(feature = "render")]
+    pub use crate::ladder::{
+        LadderDiagnostics, LadderImportance, LadderPlugin, LadderSettings, LodLadder,
+        generate_ladder,
+    };
     pub use crate::lod::{
         FrameBudget, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin, StrategyKind,
     };
@@ -57,6 +64,7 @@ pub mod prelude {
 /// | [`culling::CullingPlugin`] | the box hierarchy over every instance, culled against the view | `TreePlugin` |
 /// | [`wind::WindPlugin`] | springs, ring offsets and the wind's motion LOD | `AssetPlugin`, `TreePlugin`, `CullingPlugin` |
 /// | [`lod::LodPlugin`] | value, budget and each instance's [`draw::TreeDrawList`] | `TreePlugin`, `CostPlugin` |
+/// | `ladder::LadderPlugin` (feature `render`) | mesh entities with a `LodLadder` in the same hand-out, their chosen level shown | `LodPlugin` |
 /// | `render::ForestRenderPlugin` (feature `render`) | the forest pass: triangles, lines and points in a few instanced draws | `TreePlugin` |
 ///
 /// A missing prerequisite stops start-up with a message naming it. Bevy's `AssetPlugin`
@@ -74,7 +82,9 @@ impl PluginGroup for SherwoodPlugins {
             .add(wind::WindPlugin)
             .add(lod::LodPlugin);
         #[cfg(feature = "render")]
-        let group = group.add(render::ForestRenderPlugin);
+        let group = group
+            .add(ladder::LadderPlugin)
+            .add(render::ForestRenderPlugin);
         group
     }
 }

@@ -141,6 +141,32 @@ pub struct Calibration {
     /// passes, uploads, the present), seconds. Files written before it was measured read
     /// the default's.
     pub render_fixed: f32,
+    /// Bevy's own mesh path, which `LodLadder` entities draw by (feature `render`). Files
+    /// without it read the default's.
+    pub meshes: MeshPathCost,
+}
+
+/// What a mesh drawn by Bevy's own pipeline (a `Mesh3d` and its material) costs the
+/// render world: per draw (the entity's binding, uniforms, the draw call) and per
+/// triangle, seconds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MeshPathCost {
+    /// Per mesh drawn.
+    pub per_draw: f32,
+    /// Per triangle drawn.
+    pub per_triangle: f32,
+}
+
+impl Default for MeshPathCost {
+    /// A rough prior for Mesa lavapipe (Bevy's PBR path on a 2-core machine); the cost
+    /// model corrects it as frames are measured.
+    fn default() -> Self {
+        Self {
+            per_draw: 30e-6,
+            per_triangle: 0.4e-6,
+        }
+    }
 }
 
 impl Default for Calibration {
@@ -176,6 +202,7 @@ impl Default for Calibration {
             ],
             logic: vec![LogicTable::new(100.0, vec![(0, 2e-3), (1000, 6e-3)])],
             render_fixed: 5e-3,
+            meshes: MeshPathCost::default(),
         }
     }
 }
@@ -244,6 +271,16 @@ impl Calibration {
                         "{field}.{part} is {value}: must be between 0 and {most} seconds"
                     )));
                 }
+            }
+        }
+        for (part, value) in [
+            ("meshes.per_draw", calibration.meshes.per_draw),
+            ("meshes.per_triangle", calibration.meshes.per_triangle),
+        ] {
+            if !(value.is_finite() && (0.0..=MAX_PRIMITIVE_SECONDS).contains(&value)) {
+                return Err(CalibrationError::Invalid(format!(
+                    "{part} is {value}: must be between 0 and {MAX_PRIMITIVE_SECONDS} seconds"
+                )));
             }
         }
         if !(calibration.render_fixed.is_finite()

@@ -158,7 +158,7 @@ pub struct LearnedFrame {
 const KEPT_PREDICTIONS: usize = 32;
 
 /// The render model's parameters: fixed, triangles, triangle pixels, lines, points.
-const RENDER_PARAMETERS: usize = 5;
+const RENDER_PARAMETERS: usize = 6;
 /// The logic model's: fixed, per visible instance.
 const LOGIC_PARAMETERS: usize = 2;
 /// The overlap's: sync, serial share.
@@ -219,9 +219,9 @@ impl CostModel {
         let fixed = f64::from(calibration.render_fixed_time());
         // Factors within ×100 of the calibration; the fixed part up to 10 s.
         let render = CostFilter::new(
-            [fixed.max(1e-4), 1.0, 1.0, 1.0, 1.0],
-            [0.0, 0.01, 0.01, 0.01, 0.01],
-            [10.0, 100.0, 100.0, 100.0, 100.0],
+            [fixed.max(1e-4), 1.0, 1.0, 1.0, 1.0, 1.0],
+            [0.0, 0.01, 0.01, 0.01, 0.01, 0.01],
+            [10.0, 100.0, 100.0, 100.0, 100.0, 100.0],
             rates.speed_seconds,
             rates.costs_seconds,
         );
@@ -293,6 +293,7 @@ impl CostModel {
             triangle_pixels: s(2),
             lines: s(3),
             points: s(4),
+            meshes: s(5),
         }
     }
 
@@ -431,6 +432,7 @@ fn render_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {
         f64::from(calibrated.triangle_pixels),
         f64::from(calibrated.lines),
         f64::from(calibrated.points),
+        f64::from(calibrated.meshes),
     ]
 }
 

@@ -18,6 +18,8 @@ pub struct FamilyScales {
     pub lines: f32,
     /// Points, every size.
     pub points: f32,
+    /// Meshes on Bevy's own path (ladder entities), per draw and per triangle alike.
+    pub meshes: f32,
 }
 
 impl FamilyScales {
@@ -31,6 +33,7 @@ impl FamilyScales {
             triangle_pixels: scale,
             lines: scale,
             points: scale,
+            meshes: scale,
         }
     }
 }
@@ -52,12 +55,14 @@ pub struct FamilyTimes {
     pub lines: f32,
     /// Points.
     pub points: f32,
+    /// Meshes on Bevy's own path (ladder entities).
+    pub meshes: f32,
 }
 
 impl FamilyTimes {
     /// The whole time.
     pub fn total(&self) -> f32 {
-        self.triangles + self.triangle_pixels + self.lines + self.points
+        self.triangles + self.triangle_pixels + self.lines + self.points + self.meshes
     }
 
     /// Each part divided by its family's factor: the same selection priced by the
@@ -69,6 +74,7 @@ impl FamilyTimes {
             triangle_pixels: over(self.triangle_pixels, scales.triangle_pixels),
             lines: over(self.lines, scales.lines),
             points: over(self.points, scales.points),
+            meshes: over(self.meshes, scales.meshes),
         }
     }
 }
@@ -79,6 +85,7 @@ impl core::ops::AddAssign for FamilyTimes {
         self.triangle_pixels += other.triangle_pixels;
         self.lines += other.lines;
         self.points += other.points;
+        self.meshes += other.meshes;
     }
 }
 
@@ -98,6 +105,10 @@ pub struct PrimitiveCosts {
     pub point: Vec<f32>,
     /// Per covered pixel of points, by size.
     pub point_pixel: Vec<f32>,
+    /// Per mesh drawn on Bevy's own path (ladder entities).
+    pub mesh_draw: f32,
+    /// Per triangle of such a mesh.
+    pub mesh_triangle: f32,
     /// The most pixels one object (a trunk, a tree's leaves) or one batch of primitives
     /// can cover: the viewport's. A tree at the camera projects to millions of pixels per
     /// triangle, but its triangles together fill the screen, no more (the depth test
@@ -133,6 +144,8 @@ impl PrimitiveCosts {
             line_pixel: each(&calibration.lines, |c| c.per_pixel, scales.lines),
             point: each(&calibration.points, |c| c.per_primitive, scales.points),
             point_pixel: each(&calibration.points, |c| c.per_pixel, scales.points),
+            mesh_draw: clean(calibration.meshes.per_draw, scales.meshes),
+            mesh_triangle: clean(calibration.meshes.per_triangle, scales.meshes),
             max_pixels: f32::INFINITY,
         }
     }
@@ -162,6 +175,11 @@ impl PrimitiveCosts {
     pub fn lines(&self, width: u32, count: u32, length: f32) -> f32 {
         let covered = (length * width as f32).min(self.max_pixels);
         count as f32 * Self::pick(&self.line, width) + Self::pick(&self.line_pixel, width) * covered
+    }
+
+    /// One mesh of `triangles` triangles on Bevy's own path.
+    pub fn mesh(&self, triangles: u32) -> f32 {
+        self.mesh_draw + triangles as f32 * self.mesh_triangle
     }
 
     /// `count` points of `size` pixels.

@@ -7,9 +7,9 @@ use std::time::Instant;
 use bevy::prelude::*;
 
 use super::select::{self, LeafMethod, PrimitiveCosts, VisibleGroup};
-use super::value::VisibleTree;
+use super::value::{Object, Part, VisibleTree};
 use super::{
-    FrameBudget, LADDER_FRACTIONS, LodDiagnostics, LodFrame, LodMode, StrategyKind,
+    FrameBudget, LADDER_FRACTIONS, LadderObjects, LodDiagnostics, LodFrame, LodMode, StrategyKind,
     TARGET_WARNING_SECS,
 };
 use crate::budget::{BudgetStrategy, Fit, Level, ObjectDesc, PreviousSelection};
@@ -26,6 +26,7 @@ pub(super) fn hand_out_time(
     models: Res<Assets<TreeModel>>,
     time: Res<Time<Real>>,
     mut diagnostics: ResMut<LodDiagnostics>,
+    mut ladders: ResMut<LadderObjects>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -72,12 +73,27 @@ pub(super) fn hand_out_time(
     }
 
     let mut predicted = 0.0f32;
-    // What of it went to lines and to points (the rest to triangles).
+    // What of it went to lines, to points and to ladder meshes (the rest to triangles).
     let mut parts = select::Selected::default();
     let mut take = |chosen: select::Selected| {
         parts.lines += chosen.lines;
         parts.points += chosen.points;
+        parts.meshes += chosen.meshes;
         chosen
+    };
+    let LadderObjects {
+        entries: ladder_entries,
+        triangles: ladder_triangles,
+        chosen: ladder_chosen,
+    } = &mut *ladders;
+    // A ladder entry's levels' triangle counts, best first.
+    let levels_of = |e: u32| {
+        ladder_entries
+            .get(e as usize)
+            .and_then(|entry| {
+                ladder_triangles.get(entry.levels.start as usize..entry.levels.end as usize)
+            })
+            .unwrap_or(&[])
     };
     let mut truncated = 0;
     let mut wasted = 0.0;
@@ -115,28 +131,40 @@ pub(super) fn hand_out_time(
                 ))
                 .cost;
             }
+            // Ladders show their best level (no static rule of their own).
+            for object in frame.objects.iter().filter(|o| o.part == Part::Ladder) {
+                let (level, chosen) =
+                    select::ladder_level(&costs, levels_of(object.index), f32::INFINITY);
+                predicted += take(chosen).cost;
+                ladder_chosen[object.index as usize] = Some(level);
+            }
         }
         LodMode::Tc | LodMode::Tclod => {
             let tclod = budget.mode == LodMode::Tclod;
-            let (trees, groups, objects, lists) = (
+            let (trees, groups, objects, lists, scratch) = (
                 &frame.trees,
                 &frame.groups,
                 &frame.objects,
                 &mut frame.lists,
+                &mut frame.scratch,
             );
             let leaf_method = if tclod {
                 LeafMethod::Tclod(budget.point_sizes)
             } else {
                 LeafMethod::Tc
             };
-            // What object `i` draws with `given` seconds, written into `list`.
+            // What object `i` draws with `given` seconds, written into `list` (a ladder
+            // entity's level is `select::ladder_level`'s; it writes no list).
             let search = |i: usize, given: f32, list: &mut TreeDrawList| {
                 let object = objects[i];
-                let tree = &trees[object.tree as usize];
+                if object.part == Part::Ladder {
+                    return select::ladder_level(&costs, levels_of(object.index), given).1;
+                }
+                let tree = &trees[object.index as usize];
                 let Some(m) = model_of(tree) else {
                     return select::Selected::default();
                 };
-                if object.leaves {
+                if object.part == Part::Leaves {
                     tree_leaves(m, tree, groups, &costs, leaf_method, given, list)
                 } else if tclod {
                     select::trunk_tclod(m, &tree.view, &costs, budget.line_widths, given, list)
@@ -144,16 +172,36 @@ pub(super) fn hand_out_time(
                     select::trunk_tc(m, &tree.view, &costs, given, list)
                 }
             };
+            // The list an object's choice goes to: its tree's, or scratch for a ladder.
+            fn list_of<'a>(
+                object: Object,
+                lists: &'a mut [TreeDrawList],
+                scratch: &'a mut TreeDrawList,
+            ) -> &'a mut TreeDrawList {
+                match object.part {
+                    Part::Ladder => scratch,
+                    _ => &mut lists[object.index as usize],
+                }
+            }
+            let entity_of = |object: Object| match object.part {
+                Part::Ladder => ladder_entries[object.index as usize].entity,
+                _ => trees[object.index as usize].entity,
+            };
             let stats = if budget.strategy == StrategyKind::RobinHood {
                 // Every object's cheapest representation, paid before the hand-out.
                 let floors = &mut frame.floors;
                 floors.clear();
                 floors.extend(objects.iter().map(|object| {
-                    let tree = &trees[object.tree as usize];
+                    if object.part == Part::Ladder {
+                        return select::ladder_level(&costs, levels_of(object.index), 0.0)
+                            .1
+                            .cost;
+                    }
+                    let tree = &trees[object.index as usize];
                     let Some(m) = model_of(tree) else {
                         return 0.0;
                     };
-                    if object.leaves {
+                    if object.part == Part::Leaves {
                         tree_leaves_floor(m, tree, groups, &costs, leaf_method)
                     } else {
                         select::trunk_floor(
@@ -170,11 +218,20 @@ pub(super) fn hand_out_time(
                     &frame.floors,
                     rendering,
                     |i, given| {
-                        let chosen = take(search(i, given, &mut lists[objects[i].tree as usize]));
+                        let object = objects[i];
+                        let chosen = take(search(i, given, list_of(object, lists, scratch)));
+                        let level = if object.part == Part::Ladder {
+                            let (level, _) =
+                                select::ladder_level(&costs, levels_of(object.index), given);
+                            ladder_chosen[object.index as usize] = Some(level);
+                            level
+                        } else {
+                            // 0: full detail, nothing more to buy.
+                            u32::from(!chosen.full)
+                        };
                         Fit {
                             used: chosen.cost,
-                            // 0: full detail, nothing more to buy.
-                            level: u32::from(!chosen.full),
+                            level,
                             truncated: chosen.truncated,
                         }
                     },
@@ -185,8 +242,7 @@ pub(super) fn hand_out_time(
                 frame.problem.clear();
                 frame.rung_times.clear();
                 frame.next_previous.clear();
-                let scratch = &mut frame.scratch;
-                for (i, object) in objects.iter().enumerate() {
+                for (i, &object) in objects.iter().enumerate() {
                     let full = search(i, 1.0e6, scratch).cost;
                     let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
                     let mut times = [0.0; LADDER_FRACTIONS.len()];
@@ -202,7 +258,7 @@ pub(super) fn hand_out_time(
                         };
                         ladder[j] = Level::new(cost, frame.values[i] * accuracy);
                     }
-                    let key = (trees[object.tree as usize].entity, object.leaves);
+                    let key = (entity_of(object), object.part);
                     let previous = frame
                         .previous
                         .get(&key)
@@ -231,9 +287,15 @@ pub(super) fn hand_out_time(
                     let object = objects[i];
                     if let Some(level) = allocation.level {
                         let time = frame.rung_times[i][level as usize];
-                        take(search(i, time, &mut lists[object.tree as usize]));
-                        let key = (trees[object.tree as usize].entity, object.leaves);
-                        frame.next_previous.insert(key, level);
+                        take(search(i, time, list_of(object, lists, scratch)));
+                        if object.part == Part::Ladder {
+                            let (shown, _) =
+                                select::ladder_level(&costs, levels_of(object.index), time);
+                            ladder_chosen[object.index as usize] = Some(shown);
+                        }
+                        frame
+                            .next_previous
+                            .insert((entity_of(object), object.part), level);
                     }
                 }
                 core::mem::swap(&mut frame.previous, &mut frame.next_previous);
@@ -256,13 +318,14 @@ pub(super) fn hand_out_time(
     }
     // The selection by family, priced as the calibration alone would: what the cost
     // model learns from once the frame is measured.
-    let triangles = (predicted - parts.lines - parts.points).max(0.0);
+    let triangles = (predicted - parts.lines - parts.points - parts.meshes).max(0.0);
     let triangle_vertices = (counts.triangles as f32 * costs.triangle).min(triangles);
     let priced = FamilyTimes {
         triangles: triangle_vertices,
         triangle_pixels: triangles - triangle_vertices,
         lines: parts.lines,
         points: parts.points,
+        meshes: parts.meshes,
     };
     let render = fixed + predicted;
     let frame_time = overlap.frame_time(logic, render);

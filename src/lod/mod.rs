@@ -73,6 +73,7 @@ impl Plugin for LodPlugin {
             .init_resource::<TreeModelsVersion>()
             .init_resource::<LodDiagnostics>()
             .init_resource::<LodFrame>()
+            .init_resource::<LadderObjects>()
             .add_systems(
                 PostUpdate,
                 (
@@ -86,6 +87,35 @@ impl Plugin for LodPlugin {
     }
 }
 
+/// The mesh entities with LOD ladders in the hand-out beside the trees: written before
+/// the Value stage by the ladder plugin ([`crate::ladder`], feature `render`), their
+/// levels chosen by the Budget stage.
+#[derive(Resource, Default, Debug)]
+pub(crate) struct LadderObjects {
+    /// One per ladder entity.
+    pub(crate) entries: Vec<LadderEntry>,
+    /// Every entry's levels' triangle counts, best first ([`LadderEntry::levels`]).
+    pub(crate) triangles: Vec<u32>,
+    /// Per entry, the level the Budget stage chose (0 = best); `None` out of view.
+    pub(crate) chosen: Vec<Option<u32>>,
+}
+
+/// A ladder entity as the stages see it: a bounding sphere, an area for the value
+/// function, an importance and its levels' triangle counts.
+#[derive(Clone, Debug)]
+pub(crate) struct LadderEntry {
+    pub(crate) entity: Entity,
+    /// Its bounding sphere, world space.
+    pub(crate) center: Vec3,
+    pub(crate) radius: f32,
+    /// Its world-space surface area (of its bounding box): what the value function
+    /// weighs, as a tree part's triangle area.
+    pub(crate) area: f32,
+    pub(crate) importance: f32,
+    /// Its levels in [`LadderObjects::triangles`].
+    pub(crate) levels: core::ops::Range<u32>,
+}
+
 /// The frame's working state, kept between frames to reuse its allocations.
 #[derive(Resource, Default)]
 pub(super) struct LodFrame {
@@ -94,6 +124,8 @@ pub(super) struct LodFrame {
     trees: Vec<VisibleTree>,
     groups: Vec<VisibleGroup>,
     objects: Vec<Object>,
+    /// `(complexity, object, value)` of the ladder entities in view, before merging.
+    ladder_keyed: Vec<(f32, Object, f32)>,
     /// `(rank, complexity, object, value)` of the visible objects, before ordering.
     keyed: Vec<(u32, f32, Object, f32)>,
     /// Per rank, where its objects start in `objects` (a counting sort's scratch).
@@ -112,9 +144,9 @@ pub(super) struct LodFrame {
     problem: BudgetProblem,
     /// Per object, the time of each ladder rung (ladder strategies).
     rung_times: Vec<[f32; LADDER_FRACTIONS.len()]>,
-    /// Last frame's rung per (instance, leaves), for the incremental strategies.
-    previous: HashMap<(Entity, bool), u32>,
-    next_previous: HashMap<(Entity, bool), u32>,
+    /// Last frame's rung per (entity, part), for the incremental strategies.
+    previous: HashMap<(Entity, value::Part), u32>,
+    next_previous: HashMap<(Entity, value::Part), u32>,
     scratch: TreeDrawList,
     /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
     /// when models change.

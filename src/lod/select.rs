@@ -51,6 +51,8 @@ pub struct Selected {
     pub lines: f32,
     /// The part of `cost` spent on points.
     pub points: f32,
+    /// The part of `cost` spent on meshes drawn by Bevy's own path (a ladder level).
+    pub meshes: f32,
     /// The time was below the cheapest representation, which is drawn anyway.
     pub truncated: bool,
     /// Full detail is drawn: every triangle of the object (of its visible leaf groups),
@@ -358,6 +360,31 @@ fn thickest_triangles(model: &TreeModel) -> u32 {
         .find(|&n| n > 0)
         .unwrap_or(0)
         .min(total)
+}
+
+/// The level of a LOD ladder (`triangles`: each level's count, best first) shown with
+/// `time` seconds: the best that fits, else the cheapest (nothing visible is dropped),
+/// with its cost on Bevy's mesh path. A ladder without levels costs nothing.
+pub fn ladder_level(costs: &PrimitiveCosts, triangles: &[u32], time: f32) -> (u32, Selected) {
+    let Some(&cheapest) = triangles.last() else {
+        return (0, Selected::default());
+    };
+    let (level, count) = triangles
+        .iter()
+        .enumerate()
+        .find(|&(_, &count)| costs.mesh(count) <= time)
+        .map_or((triangles.len() - 1, cheapest), |(level, &count)| {
+            (level, count)
+        });
+    let cost = costs.mesh(count);
+    let selected = Selected {
+        cost,
+        meshes: cost,
+        truncated: cost > time,
+        full: level == 0,
+        ..Selected::default()
+    };
+    (level as u32, selected)
 }
 
 /// What [`trunk_tc`] (`widths` `None`) or [`trunk_tclod`] draws with no time at all: the
@@ -840,6 +867,7 @@ fn tclod_choice(
             cost: each * count as f32,
             lines: 0.0,
             points: each * count as f32,
+            meshes: 0.0,
             truncated: affordable == 0,
             full: false,
         },
@@ -1019,6 +1047,7 @@ pub fn leaves_at_depth(
         cost,
         lines: 0.0,
         points: point_cost,
+        meshes: 0.0,
         truncated: overran(method, cost, time),
         full: points == 0 && tris == n,
     }

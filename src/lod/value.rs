@@ -7,21 +7,33 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
 use super::select::{self, PrimitiveCosts, TreeView, VisibleGroup};
-use super::{FrameBudget, LodFrame};
+use super::{FrameBudget, LadderObjects, LodFrame};
 use crate::budget::{ValueInputs, ValueModel};
 use crate::cost::CostModel;
-use crate::culling::{ForestCulling, InstanceVisibility};
+use crate::culling::{CullView, ForestCulling, FrustumPlanes, InstanceVisibility};
 use crate::draw::{ModelSlot, TreeDrawList};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
-use crate::tree::{TreeModel, TreeModelsVersion};
+use crate::tree::{BoundingSphere, TreeModel, TreeModelsVersion};
 use crate::view::LodView;
 
-/// One visible part of a tree.
+/// What an object of the hand-out is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) enum Part {
+    /// A tree's trunk.
+    Trunk,
+    /// A tree's leaves.
+    Leaves,
+    /// A mesh entity with a LOD ladder.
+    Ladder,
+}
+
+/// One visible object: a part of a tree, or a ladder entity.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Object {
-    /// Index into [`LodFrame::trees`].
-    pub(super) tree: u32,
-    pub(super) leaves: bool,
+    /// Index into [`LodFrame::trees`], or for [`Part::Ladder`] into
+    /// [`LadderObjects::entries`](super::LadderObjects).
+    pub(super) index: u32,
+    pub(super) part: Part,
 }
 
 /// One visible tree this frame.
@@ -179,10 +191,11 @@ pub(super) fn value_objects(
     budget: Res<FrameBudget>,
     cost_model: Res<CostModel>,
     culling: Option<Res<ForestCulling>>,
-    views: Query<&LodView>,
+    views: Query<(&LodView, Option<&CullView>)>,
     table: Res<ForestInstances>,
     models: Res<Assets<TreeModel>>,
     version: Res<TreeModelsVersion>,
+    mut ladders: ResMut<LadderObjects>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -191,9 +204,44 @@ pub(super) fn value_objects(
     frame.objects.clear();
     frame.values.clear();
     frame.complexities.clear();
-    let (Some(culling), Some(view)) = (culling, views.iter().next()) else {
+    let Some((view, cull_view)) = views.iter().next() else {
         return;
     };
+    frame.viewport_pixels = view.viewport_pixels;
+    if let Some(culling) = culling {
+        value_trees(
+            frame,
+            &budget,
+            &cost_model,
+            &culling,
+            view,
+            &table,
+            &models,
+            &version,
+        );
+    }
+    value_ladders(
+        frame,
+        &budget,
+        &cost_model,
+        view,
+        cull_view.map(|c| &c.0),
+        &mut ladders,
+    );
+    frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
+}
+
+/// The visible trees' objects, simple → complex.
+fn value_trees(
+    frame: &mut LodFrame,
+    budget: &FrameBudget,
+    cost_model: &CostModel,
+    culling: &ForestCulling,
+    view: &LodView,
+    table: &ForestInstances,
+    models: &Assets<TreeModel>,
+    version: &TreeModelsVersion,
+) {
     if frame.ranked_version != Some(version.0) {
         let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
         frame.infos = model_infos(&models, &costs);
@@ -214,7 +262,6 @@ pub(super) fn value_objects(
         frame.placed_key = Some(placed_key);
     }
     let projection = view.projection();
-    frame.viewport_pixels = view.viewport_pixels;
     let value_of = |area: f32, at: Vec3, importance: f32| {
         budget.value.value(&ValueInputs {
             area,
@@ -298,15 +345,23 @@ pub(super) fn value_objects(
                 r,
                 c,
                 Object {
-                    tree,
-                    leaves: false,
+                    index: tree,
+                    part: Part::Trunk,
                 },
                 value_of(area, trunk_center, budget.trunk_importance),
             ));
         }
         if !group_range.is_empty() || leaf_depth.is_some() {
             let (r, c) = info.leaves_rank;
-            keyed.push((r, c, Object { tree, leaves: true }, leaves_value));
+            keyed.push((
+                r,
+                c,
+                Object {
+                    index: tree,
+                    part: Part::Leaves,
+                },
+                leaves_value,
+            ));
         }
         trees.push(VisibleTree {
             entity,
@@ -335,8 +390,8 @@ pub(super) fn value_objects(
     }
     let n = frame.keyed.len();
     let placeholder = Object {
-        tree: 0,
-        leaves: false,
+        index: 0,
+        part: Part::Trunk,
     };
     frame.objects.resize(n, placeholder);
     frame.complexities.resize(n, 0.0);
@@ -349,5 +404,75 @@ pub(super) fn value_objects(
         frame.complexities[i] = complexity;
         frame.values[i] = value;
     }
-    frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
+}
+
+/// The ladder entities in view, valued like the trees and merged into the simple →
+/// complex order (their complexity: their best level's calibrated cost).
+fn value_ladders(
+    frame: &mut LodFrame,
+    budget: &FrameBudget,
+    cost_model: &CostModel,
+    view: &LodView,
+    frustum: Option<&FrustumPlanes>,
+    ladders: &mut LadderObjects,
+) {
+    ladders.chosen.clear();
+    ladders.chosen.resize(ladders.entries.len(), None);
+    if ladders.entries.is_empty() {
+        return;
+    }
+    let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
+    let keyed = &mut frame.ladder_keyed;
+    keyed.clear();
+    for (e, entry) in ladders.entries.iter().enumerate() {
+        let sphere = BoundingSphere {
+            center: entry.center,
+            radius: entry.radius,
+        };
+        if frustum.is_some_and(|planes| !planes.intersects_sphere(&sphere)) {
+            continue;
+        }
+        let Some(&best) = ladders.triangles.get(entry.levels.start as usize) else {
+            continue;
+        };
+        let value = budget.value.value(&ValueInputs {
+            area: entry.area,
+            depth: view.depth(entry.center),
+            distance: entry.center.distance(view.position),
+            importance: entry.importance,
+        });
+        let object = Object {
+            index: e as u32,
+            part: Part::Ladder,
+        };
+        keyed.push((costs.mesh(best), object, value));
+    }
+    if keyed.is_empty() {
+        return;
+    }
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Merge with the trees' objects, already in order: stable, trees first on ties.
+    let trees = frame.objects.len();
+    let (objects, complexities, values) = (
+        core::mem::take(&mut frame.objects),
+        core::mem::take(&mut frame.complexities),
+        core::mem::take(&mut frame.values),
+    );
+    frame.objects.reserve(trees + keyed.len());
+    let (mut t, mut l) = (0, 0);
+    while t < trees || l < keyed.len() {
+        let tree_first = l == keyed.len() || (t < trees && complexities[t] <= keyed[l].0);
+        if tree_first {
+            frame.objects.push(objects[t]);
+            frame.complexities.push(complexities[t]);
+            frame.values.push(values[t]);
+            t += 1;
+        } else {
+            let (complexity, object, value) = keyed[l];
+            frame.objects.push(object);
+            frame.complexities.push(complexity);
+            frame.values.push(value);
+            l += 1;
+        }
+    }
 }

@@ -40,8 +40,8 @@ use bevy::prelude::*;
 
 use crate::cost::{
     AdapterIdentity, Calibration, CalibrationDir, CostModel, CostSample, CostSettings,
-    FrameSamples, LinearCost, LogicTable, calibration_file_name, fit_nonnegative_cost,
-    fit_sized_costs,
+    FrameSamples, LinearCost, LogicTable, MeshPathCost, calibration_file_name,
+    fit_nonnegative_cost, fit_sized_costs,
 };
 use crate::culling::ForestCulling;
 use crate::draw::{LineRun, PointRun, TreeDrawList};
@@ -736,6 +736,9 @@ fn fit(
         points,
         logic,
         render_fixed,
+        // Bevy's mesh path is not measured by this run: its prior, which the running app
+        // corrects from its frames.
+        meshes: MeshPathCost::default(),
     })
 }
 

@@ -1,0 +1,281 @@
+//! Any Bevy mesh under the forest's budget: discrete level-of-detail ladders.
+//!
+//! A [`LodLadder`] on an entity with a `Mesh3d` lists its levels, best first, each a
+//! `Mesh` handle with its triangle count. The entity is an object of the same Robin Hood
+//! hand-out as the trees: valued from its bounds with the same value function (times
+//! its [`LadderImportance`]), priced on Bevy's own mesh path (a draw's fixed cost plus
+//! its triangles, families the cost model learns like the forest pass's), never dropped
+//! (its cheapest level is its floor). The level chosen is shown by swapping the entity's
+//! `Mesh3d`; its material is untouched.
+//!
+//! Levels are given ([`LodLadder::new`], for example glTF siblings named `X_LOD0`,
+//! `X_LOD1`, …) or generated from one mesh by simplification ([`generate_ladder`]).
+//!
+//! A level changes only when the choice has differed for
+//! [`LadderSettings::hysteresis_frames`] frames or by more than one level
+//! ([`LadderState::settle`]); going to a cheaper level is never held back, because a
+//! held dearer level would spend time the budget gave to others.
+
+mod generate;
+
+pub use generate::{GeneratedLevel, LadderError, generate_ladder};
+
+use bevy::camera::primitives::Aabb;
+use bevy::prelude::*;
+
+use crate::lod::{LadderEntry, LadderObjects};
+use crate::schedule::SherwoodSystems;
+
+/// One level of a [`LodLadder`].
+#[derive(Clone, Debug, PartialEq, Reflect)]
+pub struct LadderLevel {
+    /// The mesh shown at this level.
+    pub mesh: Handle<Mesh>,
+    /// Its triangle count: what the budget prices it by.
+    pub triangles: u32,
+}
+
+/// Discrete levels of detail of a mesh entity, best first. The budget picks one each
+/// frame; [`LadderState`] holds what is shown.
+#[derive(Component, Clone, Debug, PartialEq, Reflect)]
+#[reflect(Component)]
+#[require(LadderState)]
+pub struct LodLadder {
+    levels: Vec<LadderLevel>,
+}
+
+impl LodLadder {
+    /// A ladder from levels best first. `None` when there are none or a level has more
+    /// triangles than the one before it (a ladder must get cheaper as it goes).
+    pub fn new(levels: Vec<LadderLevel>) -> Option<Self> {
+        let descending = levels.windows(2).all(|w| w[1].triangles <= w[0].triangles);
+        (!levels.is_empty() && descending).then_some(Self { levels })
+    }
+
+    /// Adds generated levels to `meshes` and makes them a ladder.
+    pub fn from_generated(meshes: &mut Assets<Mesh>, levels: Vec<GeneratedLevel>) -> Option<Self> {
+        Self::new(
+            levels
+                .into_iter()
+                .map(|level| LadderLevel {
+                    triangles: level.triangles,
+                    mesh: meshes.add(level.mesh),
+                })
+                .collect(),
+        )
+    }
+
+    /// The levels, best first.
+    pub fn levels(&self) -> &[LadderLevel] {
+        &self.levels
+    }
+}
+
+/// How much a ladder entity's detail matters against the trees' (which have
+/// [`FrameBudget::trunk_importance`](crate::lod::FrameBudget::trunk_importance) and
+/// `leaf_importance`). Default: 1.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component)]
+pub struct LadderImportance(pub f32);
+
+impl Default for LadderImportance {
+    fn default() -> Self {
+        Self(1.0)
+    }
+}
+
+/// Settings of the ladders.
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Resource)]
+pub struct LadderSettings {
+    /// Frames the budget's choice must stay one level better than what is shown before
+    /// the better level is shown. Default: 5. A choice two or more levels better shows at
+    /// once; a cheaper choice always shows at once.
+    pub hysteresis_frames: u32,
+}
+
+impl Default for LadderSettings {
+    fn default() -> Self {
+        Self {
+            hysteresis_frames: 5,
+        }
+    }
+}
+
+/// The level a ladder entity shows (index into [`LodLadder::levels`], 0 = best) and the
+/// hysteresis' memory.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component)]
+pub struct LadderState {
+    /// The level shown.
+    pub shown: u32,
+    /// A better level the budget has chosen, and for how many frames in a row.
+    candidate: Option<(u32, u32)>,
+}
+
+impl LadderState {
+    /// A state showing `level`.
+    pub fn showing(level: u32) -> Self {
+        Self {
+            shown: level,
+            candidate: None,
+        }
+    }
+
+    /// Takes this frame's choice (`wanted`, 0 = best) and returns whether the shown level
+    /// changed: at once for a cheaper level or one two or more levels better; for one
+    /// level better only once it has been chosen `frames` frames in a row.
+    pub fn settle(&mut self, wanted: u32, frames: u32) -> bool {
+        if wanted == self.shown {
+            self.candidate = None;
+            return false;
+        }
+        let better_by_one = wanted + 1 == self.shown;
+        if !better_by_one {
+            self.shown = wanted;
+            self.candidate = None;
+            return true;
+        }
+        let streak = match self.candidate {
+            Some((level, streak)) if level == wanted => streak + 1,
+            _ => 1,
+        };
+        if streak >= frames {
+            self.shown = wanted;
+            self.candidate = None;
+            true
+        } else {
+            self.candidate = Some((wanted, streak));
+            false
+        }
+    }
+}
+
+/// What the ladders showed this frame.
+#[derive(Resource, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource)]
+pub struct LadderDiagnostics {
+    /// Ladder entities in the hand-out (with bounds), in view or not.
+    pub entities: u32,
+    /// Of those in view, how many show each level (index 0 = best).
+    pub shown_per_level: Vec<u32>,
+    /// Shown levels that changed this frame.
+    pub switches: u32,
+}
+
+/// Adds [`LodLadder`] entities to the hand-out and shows the levels chosen for them.
+/// Part of [`SherwoodPlugins`](crate::SherwoodPlugins) (feature `render`); needs the
+/// [`LodPlugin`](crate::lod::LodPlugin).
+#[derive(Default)]
+pub struct LadderPlugin;
+
+impl Plugin for LadderPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<LodLadder>()
+            .register_type::<LadderState>()
+            .register_type::<LadderImportance>()
+            .register_type::<LadderSettings>()
+            .register_type::<LadderDiagnostics>()
+            .init_resource::<LadderSettings>()
+            .init_resource::<LadderDiagnostics>()
+            .init_resource::<LadderObjects>()
+            .add_systems(
+                PostUpdate,
+                (
+                    gather_ladders.in_set(SherwoodSystems::Instances),
+                    show_ladder_levels.in_set(SherwoodSystems::DrawLists),
+                ),
+            );
+    }
+
+    fn finish(&self, app: &mut App) {
+        crate::schedule::require_plugin::<crate::lod::LodPlugin>(app, "LadderPlugin", "LodPlugin");
+    }
+}
+
+/// The ladder entities with bounds (a mesh not loaded yet has none, and waits), as the
+/// Value stage reads them.
+fn gather_ladders(
+    mut objects: ResMut<LadderObjects>,
+    ladders: Query<(
+        Entity,
+        &LodLadder,
+        &GlobalTransform,
+        Option<&Aabb>,
+        Option<&LadderImportance>,
+    )>,
+) {
+    let LadderObjects {
+        entries, triangles, ..
+    } = &mut *objects;
+    entries.clear();
+    triangles.clear();
+    for (entity, ladder, transform, aabb, importance) in &ladders {
+        let Some(aabb) = aabb else {
+            continue;
+        };
+        let affine = transform.affine();
+        let center = affine.transform_point3a(aabb.center);
+        // The box's world half extents: |M| · half extents.
+        let m = affine.matrix3;
+        let half = Vec3::from(aabb.half_extents);
+        let world_half = Vec3::new(
+            m.row(0).abs().dot(half.into()),
+            m.row(1).abs().dot(half.into()),
+            m.row(2).abs().dot(half.into()),
+        );
+        let size = 2.0 * world_half;
+        let start = triangles.len() as u32;
+        triangles.extend(ladder.levels().iter().map(|level| level.triangles));
+        entries.push(LadderEntry {
+            entity,
+            center: center.into(),
+            radius: world_half.length(),
+            area: 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x),
+            importance: importance.map_or(1.0, |i| i.0.max(0.0)),
+            levels: start..triangles.len() as u32,
+        });
+    }
+}
+
+/// Shows the level the budget chose, through the hysteresis, by swapping `Mesh3d`.
+fn show_ladder_levels(
+    objects: Res<LadderObjects>,
+    settings: Res<LadderSettings>,
+    mut diagnostics: ResMut<LadderDiagnostics>,
+    mut ladders: Query<(&LodLadder, &mut LadderState, Option<&mut Mesh3d>)>,
+    mut commands: Commands,
+) {
+    let diagnostics = &mut *diagnostics;
+    diagnostics.entities = objects.entries.len() as u32;
+    diagnostics.shown_per_level.clear();
+    diagnostics.switches = 0;
+    for (entry, chosen) in objects.entries.iter().zip(&objects.chosen) {
+        let Some(wanted) = *chosen else {
+            continue;
+        };
+        let Ok((ladder, mut state, mesh)) = ladders.get_mut(entry.entity) else {
+            continue;
+        };
+        let last = ladder.levels().len().saturating_sub(1) as u32;
+        let switched = state.settle(wanted.min(last), settings.hysteresis_frames);
+        diagnostics.switches += u32::from(switched);
+        let shown = state.shown.min(last) as usize;
+        if diagnostics.shown_per_level.len() <= shown {
+            diagnostics.shown_per_level.resize(shown + 1, 0);
+        }
+        diagnostics.shown_per_level[shown] += 1;
+        let Some(level) = ladder.levels().get(shown) else {
+            continue;
+        };
+        match mesh {
+            Some(mut mesh) if mesh.0 != level.mesh => mesh.0 = level.mesh.clone(),
+            Some(_) => {}
+            None => {
+                commands
+                    .entity(entry.entity)
+                    .insert(Mesh3d(level.mesh.clone()));
+            }
+        }
+    }
+}

@@ -1,0 +1,285 @@
+//! LOD ladders for any mesh: generated levels, the hysteresis, and ladder entities in the
+//! same Robin Hood hand-out as the trees.
+#![cfg(feature = "render")]
+
+mod common;
+
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::primitives::MeshAabb;
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy_sherwood::cost::CostSettings;
+use bevy_sherwood::culling::{CullView, ForestCulling, FrustumPlanes};
+use bevy_sherwood::ladder::{LadderError, LadderState, generate_ladder};
+use bevy_sherwood::prelude::*;
+
+fn sphere() -> Mesh {
+    Sphere::new(1.0).mesh().ico(5).unwrap()
+}
+
+fn triangles(mesh: &Mesh) -> usize {
+    mesh.indices().map_or(0, |i| i.len() / 3)
+}
+
+/// The bounds of the vertices a mesh's triangles use.
+fn used_bounds(mesh: &Mesh) -> (Vec3, Vec3) {
+    let Some(VertexAttributeValues::Float32x3(p)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
+        panic!("no positions");
+    };
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for i in mesh.indices().unwrap().iter() {
+        lo = lo.min(Vec3::from(p[i]));
+        hi = hi.max(Vec3::from(p[i]));
+    }
+    (lo, hi)
+}
+
+#[test]
+fn generated_levels_get_cheaper_keep_attributes_and_bounds() {
+    let mesh = sphere();
+    let full = triangles(&mesh);
+    let levels = generate_ladder(&mesh, &[0.5, 0.25, 0.1, 0.02]).unwrap();
+    assert_eq!(levels[0].triangles as usize, full);
+    assert_eq!(levels[0].error, 0.0);
+    assert!(levels.len() >= 4, "{}", levels.len());
+    let (lo, hi) = used_bounds(&mesh);
+    for pair in levels.windows(2) {
+        assert!(pair[1].triangles < pair[0].triangles);
+        assert!(pair[1].error >= 0.0 && pair[1].error.is_finite());
+    }
+    for (level, ratio) in levels[1..].iter().zip([0.5_f32, 0.25, 0.1]) {
+        let aim = full as f32 * ratio;
+        assert!(
+            (level.triangles as f32) < 1.5 * aim && (level.triangles as f32) > 0.5 * aim,
+            "aimed at {aim}, got {}",
+            level.triangles
+        );
+    }
+    for level in &levels {
+        assert_eq!(triangles(&level.mesh), level.triangles as usize);
+        for attribute in [Mesh::ATTRIBUTE_NORMAL, Mesh::ATTRIBUTE_UV_0] {
+            assert_eq!(
+                level
+                    .mesh
+                    .attribute(attribute)
+                    .map(VertexAttributeValues::len),
+                mesh.attribute(attribute).map(VertexAttributeValues::len)
+            );
+        }
+        // Within the full level's bounds, and the mesh's box is the full level's (Bevy's
+        // frustum culling and the budget see the same object at every level).
+        let (l, h) = used_bounds(&level.mesh);
+        assert!(l.cmpge(lo - 1e-6).all() && h.cmple(hi + 1e-6).all());
+        assert_eq!(level.mesh.compute_aabb(), mesh.compute_aabb());
+    }
+    // A sphere at 2% still has a shape: its used vertices span most of the box.
+    let (l, h) = used_bounds(&levels.last().unwrap().mesh);
+    assert!((h - l).min_element() > 1.5, "{l} {h}");
+}
+
+#[test]
+fn bad_meshes_and_ratios_are_errors() {
+    let mesh = sphere();
+    for ratios in [&[1.0][..], &[0.0], &[0.5, 0.6], &[f32::NAN]] {
+        assert!(
+            matches!(
+                generate_ladder(&mesh, ratios),
+                Err(LadderError::BadRatio { .. })
+            ),
+            "{ratios:?}"
+        );
+    }
+    let lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0_f32; 3]; 2]);
+    assert!(matches!(
+        generate_ladder(&lines, &[0.5]),
+        Err(LadderError::NotTriangles(_))
+    ));
+    let no_positions = Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    );
+    assert_eq!(
+        generate_ladder(&no_positions, &[0.5]).unwrap_err(),
+        LadderError::NoPositions
+    );
+    let mut bad_index = sphere();
+    bad_index.insert_indices(Indices::U32(vec![0, 1, 1_000_000]));
+    assert!(matches!(
+        generate_ladder(&bad_index, &[0.5]),
+        Err(LadderError::BadIndices { .. })
+    ));
+    let mut nan = sphere();
+    if let Some(VertexAttributeValues::Float32x3(p)) = nan.attribute_mut(Mesh::ATTRIBUTE_POSITION) {
+        p[3] = [f32::NAN, 0.0, 0.0];
+    }
+    assert_eq!(
+        generate_ladder(&nan, &[0.5]).unwrap_err(),
+        LadderError::NonFinitePosition { vertex: 3 }
+    );
+}
+
+#[test]
+fn hysteresis_holds_a_one_level_improvement_and_lets_cheaper_levels_through() {
+    let mut state = LadderState::showing(2);
+    // One frame wanting one level better: held.
+    assert!(!state.settle(1, 3));
+    assert_eq!(state.shown, 2);
+    assert!(!state.settle(2, 3));
+    // Three frames in a row: shown.
+    assert!(!state.settle(1, 3));
+    assert!(!state.settle(1, 3));
+    assert!(state.settle(1, 3));
+    assert_eq!(state.shown, 1);
+    // Cheaper: at once (a held dearer level would spend others' time).
+    assert!(state.settle(2, 3));
+    assert_eq!(state.shown, 2);
+    // Two levels better: at once.
+    assert!(state.settle(0, 3));
+    assert_eq!(state.shown, 0);
+    // An interrupted streak starts again.
+    let mut state = LadderState::showing(3);
+    state.settle(2, 3);
+    state.settle(2, 3);
+    state.settle(3, 3);
+    assert!(!state.settle(2, 3));
+    assert_eq!(state.shown, 3);
+}
+
+const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
+const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);
+
+/// The default forest and `n` ladder spheres (five levels) in front of the camera.
+fn app(n: usize) -> (App, Vec<Entity>) {
+    let mut app = common::headless_app();
+    app.init_asset::<Mesh>();
+    app.world_mut().resource_mut::<CostSettings>().online = false;
+    app.world_mut().resource_mut::<WindSettings>().enabled = false;
+    let handle = app
+        .world()
+        .resource::<AssetServer>()
+        .load("forests/default.ecosystem.ron");
+    app.world_mut().spawn(Forest(handle));
+    let clip_from_world = Mat4::perspective_infinite_reverse_rh(0.8, 16.0 / 9.0, 0.1)
+        * Mat4::look_at_rh(EYE, LOOK_AT, Vec3::Y);
+    app.world_mut().spawn((
+        CullView(FrustumPlanes::from_clip_from_world(clip_from_world)),
+        LodView {
+            position: EYE,
+            forward: (LOOK_AT - EYE).normalize(),
+            focal_pixels: 540.0 / (2.0 * (0.8f32 * 0.5).tan()),
+            viewport_pixels: 540.0 * 540.0,
+        },
+    ));
+    let levels = generate_ladder(&sphere(), &[0.4, 0.15, 0.05, 0.01]).unwrap();
+    let aabb = levels[0].mesh.compute_aabb().unwrap();
+    let ladder = {
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        LodLadder::from_generated(&mut meshes, levels).unwrap()
+    };
+    let mut spheres = Vec::new();
+    for k in 0..n {
+        let along = EYE + (LOOK_AT - EYE).normalize() * (8.0 + 4.0 * k as f32);
+        let side = Vec3::new(((k % 5) as f32 - 2.0) * 3.0, 0.0, 0.0);
+        spheres.push(
+            app.world_mut()
+                .spawn((
+                    ladder.clone(),
+                    Mesh3d(ladder.levels()[0].mesh.clone()),
+                    aabb,
+                    Transform::from_translation(along + side).with_scale(Vec3::splat(1.5)),
+                ))
+                .id(),
+        );
+    }
+    for _ in 0..3000 {
+        app.update();
+        let culling = app.world().resource::<ForestCulling>();
+        if culling.hierarchy.is_some()
+            && culling.models_loading() == 0
+            && app.world().resource::<LodDiagnostics>().visible_instances > 0
+        {
+            return (app, spheres);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("the forest never finished loading");
+}
+
+fn frame(app: &mut App, mode: LodMode, strategy: StrategyKind, target_ms: f32) -> LodDiagnostics {
+    *app.world_mut().resource_mut::<FrameBudget>() = FrameBudget {
+        mode,
+        strategy,
+        target_ms,
+        ..Default::default()
+    };
+    app.update();
+    app.world().resource::<LodDiagnostics>().clone()
+}
+
+fn shown(app: &App, spheres: &[Entity]) -> Vec<u32> {
+    spheres
+        .iter()
+        .map(|&e| app.world().get::<LadderState>(e).unwrap().shown)
+        .collect()
+}
+
+#[test]
+fn ladders_share_the_hand_out_with_the_trees() {
+    let (mut app, spheres) = app(20);
+    app.world_mut()
+        .resource_mut::<LadderSettings>()
+        .hysteresis_frames = 1;
+    // Generous: every sphere at its best level.
+    frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, 100_000.0);
+    let d = frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, 100_000.0);
+    assert!(
+        shown(&app, &spheres).iter().all(|&l| l == 0),
+        "{:?}",
+        shown(&app, &spheres)
+    );
+    let ladders = app.world().resource::<LadderDiagnostics>().clone();
+    assert_eq!(ladders.entities, 20);
+    assert_eq!(ladders.shown_per_level.iter().sum::<u32>(), 20);
+    assert!(d.learned.scales.meshes > 0.0);
+    // Each sphere's mesh is its shown level's.
+    for &e in &spheres {
+        let ladder = app.world().get::<LodLadder>(e).unwrap();
+        let state = app.world().get::<LadderState>(e).unwrap();
+        let mesh = app.world().get::<Mesh3d>(e).unwrap();
+        assert_eq!(mesh.0, ladder.levels()[state.shown as usize].mesh);
+    }
+    // Tighter targets: cheaper levels, never more detail with less time, nothing dropped,
+    // and the selection within the rendering time but for the floors' reported excess.
+    let mut previous = vec![0_u32; spheres.len()];
+    for target in [400.0, 120.0, 60.0, 30.0, 10.0] {
+        let d = frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, target);
+        let selection = d.predicted_render_ms - d.render_fixed_ms;
+        assert!(
+            selection <= d.render_budget_ms * 1.0001 + d.floor_excess_ms + 1e-4,
+            "at {target} ms: {d:?}"
+        );
+        assert_eq!(d.undrawn, 0);
+        let now = shown(&app, &spheres);
+        let total: u32 = now.iter().sum();
+        assert!(
+            total >= previous.iter().sum::<u32>(),
+            "at {target} ms: {now:?} after {previous:?}"
+        );
+        previous = now;
+    }
+    assert!(
+        previous.iter().any(|&l| l > 0),
+        "a tight target picks cheaper levels: {previous:?}"
+    );
+    // The ladder strategies take ladder entities too.
+    for strategy in [StrategyKind::FunkhouserSequin, StrategyKind::TriangleBudget] {
+        let d = frame(&mut app, LodMode::Tclod, strategy, 100_000.0);
+        assert_eq!(d.undrawn, 0, "{strategy:?}");
+        assert!(
+            shown(&app, &spheres).iter().all(|&l| l == 0),
+            "{strategy:?}"
+        );
+    }
+}
