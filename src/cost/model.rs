@@ -111,6 +111,10 @@ pub struct LearnedCosts {
     pub line_us: f32,
     /// Per smallest point (1 px, as calibrated), µs.
     pub point_us: f32,
+    /// Per mesh drawn on Bevy's own path (a ladder entity), µs.
+    pub mesh_draw_us: f32,
+    /// Per triangle of such a mesh, ns.
+    pub mesh_triangle_ns: f32,
     /// Factors on the calibration (speed included), per family.
     pub scales: FamilyScales,
     /// The main world's logic with nothing visible, ms.
@@ -414,6 +418,8 @@ impl CostModel {
             triangle_pixel_ns: c.triangles.per_pixel * scales.triangle_pixels * 1e9,
             line_us: first(&c.lines) * scales.lines * 1e6,
             point_us: first(&c.points) * scales.points * 1e6,
+            mesh_draw_us: c.meshes.per_draw * scales.meshes * 1e6,
+            mesh_triangle_ns: c.meshes.per_triangle * scales.meshes * 1e9,
             scales,
             logic_fixed_ms: (logic[0] * logic_speed * 1000.0) as f32,
             logic_per_instance_us: (logic[1] * logic_speed * 1e6) as f32,
