@@ -283,3 +283,31 @@ fn ladders_share_the_hand_out_with_the_trees() {
         );
     }
 }
+
+#[test]
+fn the_budget_keeps_the_shown_level_while_it_fits_and_upgrades_with_a_margin() {
+    use bevy_sherwood::cost::{Calibration, MeshPathCost, PrimitiveCosts};
+    use bevy_sherwood::lod::select::ladder_level;
+    let calibration = Calibration {
+        meshes: MeshPathCost {
+            per_draw: 0.0,
+            per_triangle: 1.0,
+        },
+        ..Default::default()
+    };
+    let costs = PrimitiveCosts::from_calibration(&calibration, 1.0);
+    let levels = [100, 50, 10];
+    let level = |time: f32, shown: Option<u32>| ladder_level(&costs, &levels, time, shown).0;
+    // Nothing shown yet: the best that fits.
+    assert_eq!(level(60.0, None), 1);
+    assert_eq!(level(100.0, None), 0);
+    // Showing level 1: kept while it fits, level 0 only with a margin.
+    assert_eq!(level(60.0, Some(1)), 1);
+    assert_eq!(level(110.0, Some(1)), 1);
+    assert_eq!(level(120.0, Some(1)), 0);
+    // No longer fitting: the best that fits, else the cheapest, never nothing.
+    assert_eq!(level(40.0, Some(1)), 2);
+    let (cheapest, chosen) = ladder_level(&costs, &levels, 1.0, Some(0));
+    assert_eq!(cheapest, 2);
+    assert!(chosen.truncated && chosen.cost == 10.0 && chosen.meshes == 10.0);
+}

@@ -11,10 +11,13 @@
 //! Levels are given ([`LodLadder::new`], for example glTF siblings named `X_LOD0`,
 //! `X_LOD1`, …) or generated from one mesh by simplification ([`generate_ladder`]).
 //!
-//! A level changes only when the choice has differed for
-//! [`LadderSettings::hysteresis_frames`] frames or by more than one level
-//! ([`LadderState::settle`]); going to a cheaper level is never held back, because a
-//! held dearer level would spend time the budget gave to others.
+//! Two things keep levels from flickering. The budget keeps the level shown while it
+//! fits the entity's time and moves to a better one only when that costs at most
+//! [`LADDER_UPGRADE_FRACTION`](crate::lod::select::LADDER_UPGRADE_FRACTION) of it; and a
+//! level one step better than the one shown is shown only once the choice has stayed
+//! for [`LadderSettings::hysteresis_frames`] frames ([`LadderState::settle`]). A cheaper
+//! level, or one two steps better, shows at once: a held dearer level would spend time
+//! the budget gave to others.
 
 mod generate;
 
@@ -203,6 +206,7 @@ fn gather_ladders(
         &GlobalTransform,
         Option<&Aabb>,
         Option<&LadderImportance>,
+        &LadderState,
     )>,
 ) {
     let LadderObjects {
@@ -210,7 +214,7 @@ fn gather_ladders(
     } = &mut *objects;
     entries.clear();
     triangles.clear();
-    for (entity, ladder, transform, aabb, importance) in &ladders {
+    for (entity, ladder, transform, aabb, importance, state) in &ladders {
         let Some(aabb) = aabb else {
             continue;
         };
@@ -233,6 +237,7 @@ fn gather_ladders(
             radius: world_half.length(),
             area: 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x),
             importance: importance.map_or(1.0, |i| i.0.max(0.0)),
+            shown: state.shown,
             levels: start..triangles.len() as u32,
         });
     }

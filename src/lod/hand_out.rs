@@ -86,6 +86,15 @@ pub(super) fn hand_out_time(
         triangles: ladder_triangles,
         chosen: ladder_chosen,
     } = &mut *ladders;
+    // A ladder entry's level shown now, which Robin Hood's choice keeps while it fits
+    // (the ladder strategies price exact rungs and keep their own previous choice).
+    let keep_shown = budget.strategy == StrategyKind::RobinHood;
+    let shown_of = |e: u32| {
+        ladder_entries
+            .get(e as usize)
+            .filter(|_| keep_shown)
+            .map(|entry| entry.shown)
+    };
     // A ladder entry's levels' triangle counts, best first.
     let levels_of = |e: u32| {
         ladder_entries
@@ -134,7 +143,7 @@ pub(super) fn hand_out_time(
             // Ladders show their best level (no static rule of their own).
             for object in frame.objects.iter().filter(|o| o.part == Part::Ladder) {
                 let (level, chosen) =
-                    select::ladder_level(&costs, levels_of(object.index), f32::INFINITY);
+                    select::ladder_level(&costs, levels_of(object.index), f32::INFINITY, None);
                 predicted += take(chosen).cost;
                 ladder_chosen[object.index as usize] = Some(level);
             }
@@ -158,7 +167,13 @@ pub(super) fn hand_out_time(
             let search = |i: usize, given: f32, list: &mut TreeDrawList| {
                 let object = objects[i];
                 if object.part == Part::Ladder {
-                    return select::ladder_level(&costs, levels_of(object.index), given).1;
+                    return select::ladder_level(
+                        &costs,
+                        levels_of(object.index),
+                        given,
+                        shown_of(object.index),
+                    )
+                    .1;
                 }
                 let tree = &trees[object.index as usize];
                 let Some(m) = model_of(tree) else {
@@ -193,7 +208,7 @@ pub(super) fn hand_out_time(
                 floors.clear();
                 floors.extend(objects.iter().map(|object| {
                     if object.part == Part::Ladder {
-                        return select::ladder_level(&costs, levels_of(object.index), 0.0)
+                        return select::ladder_level(&costs, levels_of(object.index), 0.0, None)
                             .1
                             .cost;
                     }
@@ -221,8 +236,12 @@ pub(super) fn hand_out_time(
                         let object = objects[i];
                         let chosen = take(search(i, given, list_of(object, lists, scratch)));
                         let level = if object.part == Part::Ladder {
-                            let (level, _) =
-                                select::ladder_level(&costs, levels_of(object.index), given);
+                            let (level, _) = select::ladder_level(
+                                &costs,
+                                levels_of(object.index),
+                                given,
+                                shown_of(object.index),
+                            );
                             ladder_chosen[object.index as usize] = Some(level);
                             level
                         } else {
@@ -289,8 +308,12 @@ pub(super) fn hand_out_time(
                         let time = frame.rung_times[i][level as usize];
                         take(search(i, time, list_of(object, lists, scratch)));
                         if object.part == Part::Ladder {
-                            let (shown, _) =
-                                select::ladder_level(&costs, levels_of(object.index), time);
+                            let (shown, _) = select::ladder_level(
+                                &costs,
+                                levels_of(object.index),
+                                time,
+                                shown_of(object.index),
+                            );
                             ladder_chosen[object.index as usize] = Some(shown);
                         }
                         frame

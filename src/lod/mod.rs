@@ -112,6 +112,8 @@ pub(crate) struct LadderEntry {
     /// weighs, as a tree part's triangle area.
     pub(crate) area: f32,
     pub(crate) importance: f32,
+    /// The level it shows now (0 = best).
+    pub(crate) shown: u32,
     /// Its levels in [`LadderObjects::triangles`].
     pub(crate) levels: core::ops::Range<u32>,
 }

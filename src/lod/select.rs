@@ -362,25 +362,38 @@ fn thickest_triangles(model: &TreeModel) -> u32 {
         .min(total)
 }
 
-/// The level of a LOD ladder (`triangles`: each level's count, best first) shown with
-/// `time` seconds: the best that fits, else the cheapest (nothing visible is dropped),
+/// A ladder entity moves to a better level only when that level costs at most this
+/// fraction of its time, and keeps the level it shows while that still fits: between the
+/// two, frame-to-frame changes of its share do not flip it back and forth.
+pub const LADDER_UPGRADE_FRACTION: f32 = 0.85;
+
+/// The level of a LOD ladder (`triangles`: each level's count, best first) chosen with
+/// `time` seconds, when it shows `shown`: the best level costing at most
+/// [`LADDER_UPGRADE_FRACTION`] of the time if that is better than `shown`, else `shown`
+/// if it fits, else the best that fits, else the cheapest (nothing visible is dropped);
 /// with its cost on Bevy's mesh path. A ladder without levels costs nothing.
-pub fn ladder_level(costs: &PrimitiveCosts, triangles: &[u32], time: f32) -> (u32, Selected) {
-    let Some(&cheapest) = triangles.last() else {
+pub fn ladder_level(
+    costs: &PrimitiveCosts,
+    triangles: &[u32],
+    time: f32,
+    shown: Option<u32>,
+) -> (u32, Selected) {
+    let Some(last) = triangles.len().checked_sub(1) else {
         return (0, Selected::default());
     };
-    let (level, count) = triangles
-        .iter()
-        .enumerate()
-        .find(|&(_, &count)| costs.mesh(count) <= time)
-        .map_or((triangles.len() - 1, cheapest), |(level, &count)| {
-            (level, count)
-        });
-    let cost = costs.mesh(count);
+    let cost = |level: usize| costs.mesh(triangles[level]);
+    let best_within = |budget: f32| (0..=last).find(|&level| cost(level) <= budget);
+    let shown = shown.map(|s| (s as usize).min(last));
+    let level = match (best_within(LADDER_UPGRADE_FRACTION * time), shown) {
+        (Some(better), Some(s)) if better < s => better,
+        (_, Some(s)) if cost(s) <= time => s,
+        _ => best_within(time).unwrap_or(last),
+    };
+    let spent = cost(level);
     let selected = Selected {
-        cost,
-        meshes: cost,
-        truncated: cost > time,
+        cost: spent,
+        meshes: spent,
+        truncated: spent > time,
         full: level == 0,
         ..Selected::default()
     };
