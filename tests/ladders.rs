@@ -8,8 +8,6 @@ use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::MeshAabb;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bevy_sherwood::cost::CostSettings;
-use bevy_sherwood::culling::{CullView, ForestCulling, FrustumPlanes};
 use bevy_sherwood::ladder::{LadderError, LadderState, generate_ladder};
 use bevy_sherwood::prelude::*;
 
@@ -152,59 +150,31 @@ const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);
 
 /// The default forest and `n` ladder spheres (five levels) in front of the camera.
 fn app(n: usize) -> (App, Vec<Entity>) {
-    let mut app = common::headless_app();
-    app.init_asset::<Mesh>();
-    app.world_mut().resource_mut::<CostSettings>().online = false;
-    app.world_mut().resource_mut::<WindSettings>().enabled = false;
-    let handle = app
-        .world()
-        .resource::<AssetServer>()
-        .load("forests/default.ecosystem.ron");
-    app.world_mut().spawn(Forest(handle));
-    let clip_from_world = Mat4::perspective_infinite_reverse_rh(0.8, 16.0 / 9.0, 0.1)
-        * Mat4::look_at_rh(EYE, LOOK_AT, Vec3::Y);
-    app.world_mut().spawn((
-        CullView(FrustumPlanes::from_clip_from_world(clip_from_world)),
-        LodView {
-            position: EYE,
-            forward: (LOOK_AT - EYE).normalize(),
-            focal_pixels: 540.0 / (2.0 * (0.8f32 * 0.5).tan()),
-            viewport_pixels: 540.0 * 540.0,
-        },
-    ));
-    let levels = generate_ladder(&sphere(), &[0.4, 0.15, 0.05, 0.01]).unwrap();
-    let aabb = levels[0].mesh.compute_aabb().unwrap();
-    let ladder = {
-        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
-        LodLadder::from_generated(&mut meshes, levels).unwrap()
-    };
     let mut spheres = Vec::new();
-    for k in 0..n {
-        let along = EYE + (LOOK_AT - EYE).normalize() * (8.0 + 4.0 * k as f32);
-        let side = Vec3::new(((k % 5) as f32 - 2.0) * 3.0, 0.0, 0.0);
-        spheres.push(
-            app.world_mut()
-                .spawn((
-                    ladder.clone(),
-                    Mesh3d(ladder.levels()[0].mesh.clone()),
-                    aabb,
-                    Transform::from_translation(along + side).with_scale(Vec3::splat(1.5)),
-                ))
-                .id(),
-        );
-    }
-    for _ in 0..3000 {
-        app.update();
-        let culling = app.world().resource::<ForestCulling>();
-        if culling.hierarchy.is_some()
-            && culling.models_loading() == 0
-            && app.world().resource::<LodDiagnostics>().visible_instances > 0
-        {
-            return (app, spheres);
+    let app = common::default_forest_view(EYE, LOOK_AT, |app| {
+        app.init_asset::<Mesh>();
+        let levels = generate_ladder(&sphere(), &[0.4, 0.15, 0.05, 0.01]).unwrap();
+        let aabb = levels[0].mesh.compute_aabb().unwrap();
+        let ladder = {
+            let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+            LodLadder::from_generated(&mut meshes, levels).unwrap()
+        };
+        for k in 0..n {
+            let along = EYE + (LOOK_AT - EYE).normalize() * (8.0 + 4.0 * k as f32);
+            let side = Vec3::new(((k % 5) as f32 - 2.0) * 3.0, 0.0, 0.0);
+            spheres.push(
+                app.world_mut()
+                    .spawn((
+                        ladder.clone(),
+                        Mesh3d(ladder.levels()[0].mesh.clone()),
+                        aabb,
+                        Transform::from_translation(along + side).with_scale(Vec3::splat(1.5)),
+                    ))
+                    .id(),
+            );
         }
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
-    panic!("the forest never finished loading");
+    });
+    (app, spheres)
 }
 
 fn frame(app: &mut App, mode: LodMode, strategy: StrategyKind, target_ms: f32) -> LodDiagnostics {

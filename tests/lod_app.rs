@@ -5,9 +5,7 @@ mod common;
 
 use bevy::prelude::*;
 use bevy_sherwood::cost::{CostModel, CostSettings};
-use bevy_sherwood::culling::CullView;
 use bevy_sherwood::culling::ForestCulling;
-use bevy_sherwood::culling::FrustumPlanes;
 use bevy_sherwood::draw::TreeDrawList;
 use bevy_sherwood::lod::StrategyKind;
 use bevy_sherwood::prelude::*;
@@ -16,41 +14,7 @@ const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
 const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);
 
 fn app() -> App {
-    let mut app = common::headless_app();
-    // Fixed costs: these tests compare selections across frames, which learned costs
-    // would otherwise change (nothing is measured in a headless app, but say so).
-    app.world_mut().resource_mut::<CostSettings>().online = false;
-    // A still forest: swaying trees change their leaf groups' culling and pixel sizes, and
-    // with them the floors, from one run to the next (the wind follows the real clock).
-    app.world_mut().resource_mut::<WindSettings>().enabled = false;
-    let handle = app
-        .world()
-        .resource::<AssetServer>()
-        .load("forests/default.ecosystem.ron");
-    app.world_mut().spawn(Forest(handle));
-    let clip_from_world = Mat4::perspective_infinite_reverse_rh(0.8, 16.0 / 9.0, 0.1)
-        * Mat4::look_at_rh(EYE, LOOK_AT, Vec3::Y);
-    app.world_mut().spawn((
-        CullView(FrustumPlanes::from_clip_from_world(clip_from_world)),
-        LodView {
-            position: EYE,
-            forward: (LOOK_AT - EYE).normalize(),
-            focal_pixels: 540.0 / (2.0 * (0.8f32 * 0.5).tan()),
-            viewport_pixels: 540.0 * 540.0,
-        },
-    ));
-    for _ in 0..3000 {
-        app.update();
-        let culling = app.world().resource::<ForestCulling>();
-        if culling.hierarchy.is_some()
-            && culling.models_loading() == 0
-            && app.world().resource::<LodDiagnostics>().visible_instances > 0
-        {
-            return app;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
-    panic!("the forest never finished loading");
+    common::default_forest_view(EYE, LOOK_AT, |_| {})
 }
 
 fn frame(app: &mut App, budget: FrameBudget) -> LodDiagnostics {

@@ -104,6 +104,15 @@ pub(super) fn hand_out_time(
             })
             .unwrap_or(&[])
     };
+    // What a ladder entity shows with `time`, and its cost.
+    let ladder_pick = |object: Object, time: f32| {
+        select::ladder_level(
+            &costs,
+            levels_of(object.index),
+            time,
+            shown_of(object.index),
+        )
+    };
     let mut truncated = 0;
     let mut wasted = 0.0;
     let mut undrawn = 0;
@@ -167,13 +176,7 @@ pub(super) fn hand_out_time(
             let search = |i: usize, given: f32, list: &mut TreeDrawList| {
                 let object = objects[i];
                 if object.part == Part::Ladder {
-                    return select::ladder_level(
-                        &costs,
-                        levels_of(object.index),
-                        given,
-                        shown_of(object.index),
-                    )
-                    .1;
+                    return ladder_pick(object, given).1;
                 }
                 let tree = &trees[object.index as usize];
                 let Some(m) = model_of(tree) else {
@@ -236,12 +239,7 @@ pub(super) fn hand_out_time(
                         let object = objects[i];
                         let chosen = take(search(i, given, list_of(object, lists, scratch)));
                         let level = if object.part == Part::Ladder {
-                            let (level, _) = select::ladder_level(
-                                &costs,
-                                levels_of(object.index),
-                                given,
-                                shown_of(object.index),
-                            );
+                            let level = ladder_pick(object, given).0;
                             ladder_chosen[object.index as usize] = Some(level);
                             level
                         } else {
@@ -308,13 +306,8 @@ pub(super) fn hand_out_time(
                         let time = frame.rung_times[i][level as usize];
                         take(search(i, time, list_of(object, lists, scratch)));
                         if object.part == Part::Ladder {
-                            let (shown, _) = select::ladder_level(
-                                &costs,
-                                levels_of(object.index),
-                                time,
-                                shown_of(object.index),
-                            );
-                            ladder_chosen[object.index as usize] = Some(shown);
+                            ladder_chosen[object.index as usize] =
+                                Some(ladder_pick(object, time).0);
                         }
                         frame
                             .next_previous

@@ -244,7 +244,7 @@ fn value_trees(
 ) {
     if frame.ranked_version != Some(version.0) {
         let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
-        frame.infos = model_infos(&models, &costs);
+        frame.infos = model_infos(models, &costs);
         frame.ranked_version = Some(version.0);
     }
     // Culling's answer is indexed by the table it was built for (the same, once models
@@ -258,7 +258,7 @@ fn value_trees(
         version.0,
     );
     if frame.placed_key != Some(placed_key) {
-        frame.placed = place_trees(&table, &frame.infos);
+        frame.placed = place_trees(table, &frame.infos);
         frame.placed_key = Some(placed_key);
     }
     let projection = view.projection();

@@ -195,3 +195,49 @@ pub fn until_visible(app: &mut App) {
     }
     panic!("the forest never loaded");
 }
+
+/// The default forest (600 trees), still and with fixed costs, seen from `eye` towards
+/// `target` (1.4 rad wide, 16:9, 540 pixels high); `extra` spawns more before the first
+/// frame. Returns once the forest is culled and in view.
+pub fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)) -> App {
+    let mut app = headless_app();
+    // Fixed costs: tests compare selections across frames, which learned costs would
+    // otherwise change (nothing is measured in a headless app, but say so).
+    app.world_mut().resource_mut::<CostSettings>().online = false;
+    // A still forest: swaying trees change their leaf groups' culling and pixel sizes, and
+    // with them the floors, from one run to the next (the wind follows the real clock).
+    app.world_mut().resource_mut::<WindSettings>().enabled = false;
+    let handle = app
+        .world()
+        .resource::<AssetServer>()
+        .load("forests/default.ecosystem.ron");
+    app.world_mut().spawn(Forest(handle));
+    let clip_from_world = Mat4::perspective_infinite_reverse_rh(0.8, 16.0 / 9.0, 0.1)
+        * Mat4::look_at_rh(eye, target, Vec3::Y);
+    app.world_mut().spawn((
+        CullView(bevy_sherwood::culling::FrustumPlanes::from_clip_from_world(
+            clip_from_world,
+        )),
+        LodView {
+            position: eye,
+            forward: (target - eye).normalize(),
+            focal_pixels: 540.0 / (2.0 * (0.8f32 * 0.5).tan()),
+            viewport_pixels: 540.0 * 540.0,
+        },
+    ));
+    extra(&mut app);
+    for _ in 0..3000 {
+        app.update();
+        let culling = app
+            .world()
+            .resource::<bevy_sherwood::culling::ForestCulling>();
+        if culling.hierarchy.is_some()
+            && culling.models_loading() == 0
+            && app.world().resource::<LodDiagnostics>().visible_instances > 0
+        {
+            return app;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("the forest never finished loading");
+}
