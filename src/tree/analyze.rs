@@ -7,9 +7,13 @@
 //! - welds vertices duplicated along UV seams (by position, with a tolerance relative
 //!   to the model's size);
 //! - accepts a different number of vertices per ring, caps (flat, or around a centre
-//!   vertex) and pointed tips (a one-vertex ring of diameter 0);
-//! - attaches a branch that is a separate piece of mesh, starting near or inside its
-//!   parent, by its open end nearest to the rings found so far;
+//!   vertex), pointed tips (a one-vertex ring of diameter 0) and tips thinner than the
+//!   weld tolerance (kept as they weld);
+//! - stands the tree on its widest open ends in the ground, not on a branch or twig that
+//!   merely dips into it (a bush's);
+//! - attaches a branch that is a separate piece of mesh (as generators such as EZ-Tree
+//!   write every branch) where its open base meets another piece's surface or axis,
+//!   never at a sibling's open base (see the `rings` module);
 //! - treats each connected patch of leaf triangles (a quad, a small fan) as one leaf.
 //!
 //! Input that cannot be a tree is refused with a [`TreeAnalysisError`] naming what is
