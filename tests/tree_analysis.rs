@@ -653,40 +653,48 @@ mod separate_pieces {
         m.rings[m.rings[ring].parent as usize].center
     }
 
-    /// Two branches start inside the trunk on its axis, 2 cm apart, far from any trunk
-    /// ring: the nearest ring *centre* to the second is the first's base, but both hang
-    /// on the trunk (EZ-Tree's whorls).
-    #[test]
-    fn siblings_starting_side_by_side_both_hang_on_the_trunk() {
+    /// A trunk (8 vertices per ring, radius 0.3, from y = -0.5 to 4) and two branches
+    /// (5 per ring), each `(base, direction, radius)`.
+    fn trunk_with_two_branches(branches: [(Vec3, Vec3, f32); 2]) -> GeneratedTree {
         let mut tree = GeneratedTree::default();
         add(
             &mut tree,
             straight(Vec3::new(0.0, -0.5, 0.0), Vec3::new(0.0, 4.0, 0.0), 0.3, 5),
             8,
         );
+        for (base, direction, radius) in branches {
+            add(&mut tree, straight(base, base + direction, radius, 3), 5);
+        }
+        tree
+    }
+
+    /// The branch starting at `base` hangs on a ring of the trunk (8 vertices).
+    fn assert_hangs_on_the_trunk(m: &TreeModel, base: Vec3) {
+        let up = m.rings[ring_at(m, base)].parent as usize;
+        assert_eq!(
+            m.rings[up].vertices.len(),
+            8,
+            "the branch at {base} hangs on {}, not on a trunk ring",
+            m.rings[up].center
+        );
+    }
+
+    /// Two branches start inside the trunk on its axis, 2 cm apart, far from any trunk
+    /// ring: the nearest ring *centre* to the second is the first's base, but both hang
+    /// on the trunk (EZ-Tree's whorls).
+    #[test]
+    fn siblings_starting_side_by_side_both_hang_on_the_trunk() {
         let a = Vec3::new(0.0, 2.3, 0.0);
         let b = Vec3::new(0.0, 2.32, 0.0);
-        add(
-            &mut tree,
-            straight(a, a + Vec3::new(1.5, 0.6, 0.0), 0.08, 3),
-            5,
-        );
-        add(
-            &mut tree,
-            straight(b, b + Vec3::new(-1.2, 0.5, 0.8), 0.08, 3),
-            5,
-        );
+        let tree = trunk_with_two_branches([
+            (a, Vec3::new(1.5, 0.6, 0.0), 0.08),
+            (b, Vec3::new(-1.2, 0.5, 0.8), 0.08),
+        ]);
         let analysis = analyse(&tree);
         let m = &analysis.model;
         assert!(analysis.warnings.is_empty(), "{:?}", analysis.warnings);
         for base in [a, b] {
-            let up = m.rings[ring_at(m, base)].parent as usize;
-            assert_eq!(
-                m.rings[up].vertices.len(),
-                8,
-                "the branch at {base} hangs on {}, not on a trunk ring",
-                m.rings[up].center
-            );
+            assert_hangs_on_the_trunk(m, base);
         }
         assert_eq!(m.roots().count(), 1);
     }
@@ -695,31 +703,15 @@ mod separate_pieces {
     /// sibling whose open base is closer.
     #[test]
     fn a_piece_never_attaches_to_another_piece_s_open_base() {
-        let mut tree = GeneratedTree::default();
-        add(
-            &mut tree,
-            straight(Vec3::new(0.0, -0.5, 0.0), Vec3::new(0.0, 4.0, 0.0), 0.3, 5),
-            8,
-        );
         let a = Vec3::new(0.3, 2.3, 0.0);
         let b = Vec3::new(0.3, 2.35, 0.02);
-        add(
-            &mut tree,
-            straight(a, a + Vec3::new(1.5, 0.2, 0.0), 0.1, 3),
-            5,
-        );
-        add(
-            &mut tree,
-            straight(b, b + Vec3::new(1.4, 0.6, 0.3), 0.1, 3),
-            5,
-        );
+        let tree = trunk_with_two_branches([
+            (a, Vec3::new(1.5, 0.2, 0.0), 0.1),
+            (b, Vec3::new(1.4, 0.6, 0.3), 0.1),
+        ]);
         let m = analyse(&tree).model;
         for base in [a, b] {
-            let up = parent_center(&m, ring_at(&m, base));
-            assert!(
-                up.x.abs() < 1e-4 && up.z.abs() < 1e-4,
-                "{base} hangs on {up}"
-            );
+            assert_hangs_on_the_trunk(&m, base);
         }
     }
 

@@ -26,8 +26,10 @@ pub use generate::{GeneratedLevel, LadderError, generate_ladder};
 use bevy::camera::primitives::Aabb;
 use bevy::prelude::*;
 
+use crate::culling::transform_bounds;
 use crate::lod::{LadderEntry, LadderObjects};
 use crate::schedule::SherwoodSystems;
+use crate::tree::Bounds;
 
 /// One level of a [`LodLadder`].
 #[derive(Clone, Debug, PartialEq, Reflect)]
@@ -181,7 +183,6 @@ impl Plugin for LadderPlugin {
             .register_type::<LadderDiagnostics>()
             .init_resource::<LadderSettings>()
             .init_resource::<LadderDiagnostics>()
-            .init_resource::<LadderObjects>()
             .add_systems(
                 PostUpdate,
                 (
@@ -218,23 +219,18 @@ fn gather_ladders(
         let Some(aabb) = aabb else {
             continue;
         };
-        let affine = transform.affine();
-        let center = affine.transform_point3a(aabb.center);
-        // The box's world half extents: |M| · half extents.
-        let m = affine.matrix3;
-        let half = Vec3::from(aabb.half_extents);
-        let world_half = Vec3::new(
-            m.row(0).abs().dot(half.into()),
-            m.row(1).abs().dot(half.into()),
-            m.row(2).abs().dot(half.into()),
-        );
-        let size = 2.0 * world_half;
+        let local = Bounds {
+            min: (aabb.center - aabb.half_extents).into(),
+            max: (aabb.center + aabb.half_extents).into(),
+        };
+        let world = transform_bounds(&transform.affine(), &local);
+        let size = world.max - world.min;
         let start = triangles.len() as u32;
         triangles.extend(ladder.levels().iter().map(|level| level.triangles));
         entries.push(LadderEntry {
             entity,
-            center: center.into(),
-            radius: world_half.length(),
+            center: world.center(),
+            radius: world.half_extents().length(),
             area: 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x),
             importance: importance.map_or(1.0, |i| i.0.max(0.0)),
             shown: state.shown,

@@ -231,6 +231,16 @@ pub(super) fn value_objects(
     frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
 }
 
+/// The configured value function of `area` at `at` seen from `view`, times `importance`.
+fn value_seen(budget: &FrameBudget, view: &LodView, area: f32, at: Vec3, importance: f32) -> f32 {
+    budget.value.value(&ValueInputs {
+        area,
+        depth: view.depth(at),
+        distance: at.distance(view.position),
+        importance,
+    })
+}
+
 /// The visible trees' objects, simple → complex.
 fn value_trees(
     frame: &mut LodFrame,
@@ -262,14 +272,8 @@ fn value_trees(
         frame.placed_key = Some(placed_key);
     }
     let projection = view.projection();
-    let value_of = |area: f32, at: Vec3, importance: f32| {
-        budget.value.value(&ValueInputs {
-            area,
-            depth: view.depth(at),
-            distance: at.distance(view.position),
-            importance,
-        })
-    };
+    let value_of =
+        |area: f32, at: Vec3, importance: f32| value_seen(budget, view, area, at, importance);
     let area_exponent_one = budget.value.area_exponent() == 1.0;
     let LodFrame {
         infos,
@@ -435,12 +439,7 @@ fn value_ladders(
         let Some(&best) = ladders.triangles.get(entry.levels.start as usize) else {
             continue;
         };
-        let value = budget.value.value(&ValueInputs {
-            area: entry.area,
-            depth: view.depth(entry.center),
-            distance: entry.center.distance(view.position),
-            importance: entry.importance,
-        });
+        let value = value_seen(budget, view, entry.area, entry.center, entry.importance);
         let object = Object {
             index: e as u32,
             part: Part::Ladder,

@@ -26,8 +26,13 @@ impl Adjacency {
         }
         edges.sort_unstable();
         edges.dedup();
+        Self::from_sorted_edges(vertices, &edges)
+    }
+
+    /// Rows from directed edges `(from, to)` sorted by `from`.
+    fn from_sorted_edges(vertices: usize, edges: &[(u32, u32)]) -> Self {
         let mut offsets = vec![0_u32; vertices + 1];
-        for &(a, _) in &edges {
+        for &(a, _) in edges {
             offsets[a as usize + 1] += 1;
         }
         for i in 0..vertices {
@@ -35,7 +40,7 @@ impl Adjacency {
         }
         Self {
             offsets,
-            neighbours: edges.into_iter().map(|(_, b)| b).collect(),
+            neighbours: edges.iter().map(|&(_, b)| b).collect(),
         }
     }
 
@@ -174,10 +179,14 @@ impl Hierarchy {
                 pieces += 1;
             }
         }
+        let end_centers: Vec<Vec3> = boundary
+            .iter()
+            .map(|lp| mean(lp.iter().map(|&v| positions[v as usize])))
+            .collect();
         let end_radius: Vec<f32> = boundary
             .iter()
-            .map(|lp| {
-                let center = mean(lp.iter().map(|&v| positions[v as usize]));
+            .zip(&end_centers)
+            .map(|(lp, &center)| {
                 lp.iter()
                     .map(|&v| positions[v as usize].distance(center))
                     .sum::<f32>()
@@ -256,7 +265,14 @@ impl Hierarchy {
             return Err(not_a_ring.unwrap_or(TreeAnalysisError::NoRootRing { ground, lowest }));
         }
         h.grow(&mut queue, positions, &adjacency);
-        h.attach_pieces(&boundary, positions, &adjacency, tolerance, warnings);
+        h.attach_pieces(
+            &boundary,
+            &end_centers,
+            positions,
+            &adjacency,
+            tolerance,
+            warnings,
+        );
         // What is left has no open end. A speck (a twig thinner and shorter than a few
         // hundred tolerances, welded shut) hangs where it is as one ring; anything larger
         // floating apart from the tree is an error.
@@ -297,15 +313,12 @@ impl Hierarchy {
     fn attach_pieces(
         &mut self,
         boundary: &[Vec<u32>],
+        centers: &[Vec3],
         positions: &[Vec3],
         adjacency: &Adjacency,
         tolerance: f32,
         warnings: &mut Vec<AnalysisWarning>,
     ) {
-        let centers: Vec<Vec3> = boundary
-            .iter()
-            .map(|lp| mean(lp.iter().map(|&v| positions[v as usize])))
-            .collect();
         // Each open end's best place so far, updated only against rings added since.
         let mut best_place = vec![Place::NONE; boundary.len()];
         let mut rings_seen = 0;
@@ -815,17 +828,7 @@ fn boundary_loops(triangles: &[[u32; 3]], vertices: usize) -> Vec<Vec<u32>> {
         i = j;
     }
     boundary.sort_unstable();
-    let mut offsets = vec![0_u32; vertices + 1];
-    for &(a, _) in &boundary {
-        offsets[a as usize + 1] += 1;
-    }
-    for v in 0..vertices {
-        offsets[v + 1] += offsets[v];
-    }
-    let adjacency = Adjacency {
-        offsets,
-        neighbours: boundary.iter().map(|&(_, b)| b).collect(),
-    };
+    let adjacency = Adjacency::from_sorted_edges(vertices, &boundary);
     let on_boundary: Vec<bool> = (0..vertices as u32)
         .map(|v| !adjacency.of(v).is_empty())
         .collect();
