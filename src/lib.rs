@@ -38,8 +38,8 @@ pub mod prelude {
     pub use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
     #[cfg(feature = "render")]
     pub use crate::ladder::{
-        LadderDiagnostics, LadderImportance, LadderPlugin, LadderSettings, LodLadder,
-        generate_ladder,
+        LadderDiagnostics, LadderFromLodNames, LadderImportance, LadderPlugin, LadderSettings,
+        LodLadder, generate_ladder,
     };
     pub use crate::lod::{
         FrameBudget, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin, StrategyKind,

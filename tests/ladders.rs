@@ -281,3 +281,151 @@ fn the_budget_keeps_the_shown_level_while_it_fits_and_upgrades_with_a_margin() {
     assert_eq!(cheapest, 2);
     assert!(chosen.truncated && chosen.cost == 10.0 && chosen.meshes == 10.0);
 }
+
+/// A node as a glTF scene spawns it: a named entity with one child per primitive (each
+/// with the bounds Bevy's visibility plugin would give it).
+fn spawn_node(app: &mut App, parent: Entity, name: &str, primitives: &[Handle<Mesh>]) -> Entity {
+    let aabb = sphere().compute_aabb().unwrap();
+    let node = app
+        .world_mut()
+        .spawn((
+            Name::new(name.to_owned()),
+            Transform::default(),
+            ChildOf(parent),
+        ))
+        .id();
+    for mesh in primitives {
+        app.world_mut().spawn((
+            Mesh3d(mesh.clone()),
+            aabb,
+            Transform::default(),
+            ChildOf(node),
+        ));
+    }
+    node
+}
+
+#[test]
+fn lod_named_siblings_become_ladders_and_broken_groups_stay_as_spawned() {
+    let mut app = common::default_forest_view(EYE, LOOK_AT, |app| {
+        app.init_asset::<Mesh>();
+    });
+    let levels = generate_ladder(&sphere(), &[0.3, 0.05]).unwrap();
+    let handles: Vec<Handle<Mesh>> = {
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        levels.iter().map(|l| meshes.add(l.mesh.clone())).collect()
+    };
+    let root = app
+        .world_mut()
+        .spawn((
+            LadderFromLodNames,
+            Transform::from_translation(EYE + (LOOK_AT - EYE).normalize() * 10.0),
+        ))
+        .id();
+    let group = app
+        .world_mut()
+        .spawn((Name::new("Props"), Transform::default(), ChildOf(root)))
+        .id();
+    // Out of order, two primitives per level (the second primitive is the same ladder).
+    let lod2 = spawn_node(
+        &mut app,
+        group,
+        "Rock_LOD2",
+        &[handles[2].clone(), handles[2].clone()],
+    );
+    let lod0 = spawn_node(
+        &mut app,
+        group,
+        "Rock_lod0",
+        &[handles[0].clone(), handles[1].clone()],
+    );
+    let lod1 = spawn_node(
+        &mut app,
+        group,
+        "Rock_LOD1",
+        &[handles[1].clone(), handles[2].clone()],
+    );
+    // Broken: level 1 has more triangles than level 0.
+    let bad0 = spawn_node(&mut app, group, "Bad_LOD0", &[handles[2].clone()]);
+    let bad1 = spawn_node(&mut app, group, "Bad_LOD1", &[handles[0].clone()]);
+    app.update();
+    app.update();
+
+    let primitives = |node: Entity| -> Vec<Entity> {
+        app.world().get::<Children>(node).unwrap().iter().collect()
+    };
+    let expected = [
+        [
+            levels[0].triangles,
+            levels[1].triangles,
+            levels[2].triangles,
+        ],
+        [
+            levels[1].triangles,
+            levels[2].triangles,
+            levels[2].triangles,
+        ],
+    ];
+    for (primitive, triangles) in primitives(lod0).into_iter().zip(expected) {
+        let ladder = app.world().get::<LodLadder>(primitive).expect("a ladder");
+        let counts: Vec<u32> = ladder.levels().iter().map(|l| l.triangles).collect();
+        assert_eq!(counts, triangles);
+    }
+    for node in [lod1, lod2] {
+        assert_eq!(
+            app.world().get::<Visibility>(node),
+            Some(&Visibility::Hidden)
+        );
+    }
+    assert_ne!(
+        app.world().get::<Visibility>(lod0),
+        Some(&Visibility::Hidden)
+    );
+    // The broken group: no ladder, nothing hidden.
+    for node in [bad0, bad1] {
+        assert_ne!(
+            app.world().get::<Visibility>(node),
+            Some(&Visibility::Hidden)
+        );
+        for primitive in primitives(node) {
+            assert!(app.world().get::<LodLadder>(primitive).is_none());
+        }
+    }
+    assert!(app.world().get::<LadderFromLodNames>(root).is_none());
+    // The ladders are in the hand-out.
+    let ladders = app.world().resource::<LadderDiagnostics>().clone();
+    assert_eq!(ladders.entities, 2, "{ladders:?}");
+}
+
+#[test]
+fn lod_named_siblings_wait_for_their_meshes() {
+    let mut app = common::default_forest_view(EYE, LOOK_AT, |app| {
+        app.init_asset::<Mesh>();
+    });
+    let levels = generate_ladder(&sphere(), &[0.3]).unwrap();
+    let root = app
+        .world_mut()
+        .spawn((LadderFromLodNames, Transform::default()))
+        .id();
+    // Handles reserved but not yet filled: a glTF still loading.
+    let reserved: Vec<Handle<Mesh>> = {
+        let meshes = app.world().resource::<Assets<Mesh>>();
+        levels.iter().map(|_| meshes.reserve_handle()).collect()
+    };
+    let lod0 = spawn_node(&mut app, root, "Tower_LOD0", &reserved[..1]);
+    spawn_node(&mut app, root, "Tower_LOD1", &reserved[1..]);
+    app.update();
+    let primitive = app.world().get::<Children>(lod0).unwrap()[0];
+    assert!(app.world().get::<LodLadder>(primitive).is_none());
+    assert!(app.world().get::<LadderFromLodNames>(root).is_some());
+    {
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        for (handle, level) in reserved.iter().zip(&levels) {
+            meshes.insert(handle.id(), level.mesh.clone()).unwrap();
+        }
+    }
+    app.update();
+    app.update();
+    assert!(app.world().get::<LodLadder>(primitive).is_some());
+    assert!(app.world().get::<LadderFromLodNames>(root).is_none());
+}

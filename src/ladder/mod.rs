@@ -8,8 +8,9 @@
 //! (its cheapest level is its floor). The level chosen is shown by swapping the entity's
 //! `Mesh3d`; its material is untouched.
 //!
-//! Levels are given ([`LodLadder::new`], for example glTF siblings named `X_LOD0`,
-//! `X_LOD1`, …) or generated from one mesh by simplification ([`generate_ladder`]).
+//! Levels are given ([`LodLadder::new`], or nodes named `X_LOD0`, `X_LOD1`, … under a
+//! [`LadderFromLodNames`] scene) or generated from one mesh by simplification
+//! ([`generate_ladder`]).
 //!
 //! Two things keep levels from flickering. The budget keeps the level shown while it
 //! fits the entity's time and moves to a better one only when that costs at most
@@ -20,8 +21,10 @@
 //! the budget gave to others.
 
 mod generate;
+mod names;
 
 pub use generate::{GeneratedLevel, LadderError, generate_ladder};
+pub use names::{LadderFromLodNames, lod_name_level, mesh_triangles};
 
 use bevy::camera::primitives::Aabb;
 use bevy::prelude::*;
@@ -180,13 +183,16 @@ impl Plugin for LadderPlugin {
             .register_type::<LadderState>()
             .register_type::<LadderImportance>()
             .register_type::<LadderSettings>()
+            .register_type::<LadderFromLodNames>()
             .register_type::<LadderDiagnostics>()
             .init_resource::<LadderSettings>()
             .init_resource::<LadderDiagnostics>()
             .add_systems(
                 PostUpdate,
                 (
-                    gather_ladders.in_set(SherwoodSystems::Instances),
+                    (names::ladders_from_lod_names, gather_ladders)
+                        .chain()
+                        .in_set(SherwoodSystems::Instances),
                     show_ladder_levels.in_set(SherwoodSystems::DrawLists),
                 ),
             );
