@@ -36,7 +36,7 @@ use bevy_sherwood::cost::{
 };
 use bevy_sherwood::draw::Shading;
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestState, ForestTerrain};
-use bevy_sherwood::lod::StrategyKind;
+use bevy_sherwood::lod::{BenefitReport, StrategyKind};
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::{
     CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
@@ -64,6 +64,9 @@ usage: forest [OPTIONS]
   --mode tclod|tc|static|unlimited
   --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget
   --value p8|p9|p10|p11
+  --benefit              score each frame's hand-out (the record's benefit and
+                         benefit_bound columns; adds about one hand-out's time to the
+                         main world's)
   --no-wind              no wind
   --no-correction        predict with the calibration alone (no online learning)
   --calibration FILE|default
@@ -128,6 +131,12 @@ The record (--record) has one row per measured frame, times in ms:
                          learned costs of Bevy's mesh path (per draw, per triangle)
   ladder_switches        ladder entities whose shown level changed in the frame
   ladder_levels          ladder entities in view showing each level, best first (a/b/..)
+  mode, strategy         the mode and strategy of the frame (as on the command line)
+  benefit, benefit_bound with --benefit: the selection's benefit (value x sqrt(cost /
+                         full cost) per object) and the best any selection could reach
+                         within the rendering time (0 without --benefit)
+  value_stage_ms, budget_stage_ms, select_stage_ms
+                         the LOD stages' times (the scoring left out)
 
 With --meshes, --summary adds levels=a/b/..: the mean over the measured frames of the
 ladder entities in view showing each level, best first.";
@@ -163,6 +172,8 @@ struct Options {
     strategy: StrategyKind,
     value: ValueFunction,
     wind: bool,
+    /// Score each frame's hand-out ([`BenefitReport`]).
+    benefit: bool,
     correction: bool,
     calibration: CalibrationChoice,
     scale_calibration: Option<f32>,
@@ -215,6 +226,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         strategy: StrategyKind::RobinHood,
         value: ValueFunction::P11,
         wind: true,
+        benefit: false,
         correction: true,
         calibration: CalibrationChoice::Adapter,
         scale_calibration: None,
@@ -258,23 +270,22 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--warmup" => o.warmup = number("--warmup", it.next())?,
             "--target-ms" => o.target_ms = number("--target-ms", it.next())?,
             "--mode" => {
-                o.mode = match it.next().map(String::as_str) {
-                    Some("tclod") => LodMode::Tclod,
-                    Some("tc") => LodMode::Tc,
-                    Some("static") => LodMode::Static,
-                    Some("unlimited") => LodMode::Unlimited,
-                    other => return Err(format!("--mode: unknown {other:?}")),
-                };
+                let name = it.next().map(String::as_str);
+                o.mode = MODES
+                    .iter()
+                    .find(|m| Some(m.0) == name)
+                    .ok_or(format!("--mode: unknown {name:?}"))?
+                    .1;
             }
             "--strategy" => {
-                o.strategy = match it.next().map(String::as_str) {
-                    Some("robin-hood") => StrategyKind::RobinHood,
-                    Some("funkhouser") => StrategyKind::FunkhouserSequin,
-                    Some("funkhouser-incremental") => StrategyKind::FunkhouserIncremental,
-                    Some("triangle-budget") => StrategyKind::TriangleBudget,
-                    other => return Err(format!("--strategy: unknown {other:?}")),
-                };
+                let name = it.next().map(String::as_str);
+                o.strategy = STRATEGIES
+                    .iter()
+                    .find(|s| Some(s.0) == name)
+                    .ok_or(format!("--strategy: unknown {name:?}"))?
+                    .1;
             }
+            "--benefit" => o.benefit = true,
             "--value" => {
                 o.value = match it.next().map(String::as_str) {
                     Some("p8") => ValueFunction::P8,
@@ -376,6 +387,9 @@ struct Row {
     drawn: u64,
     /// The ladders' levels shown and switches in the frame.
     ladders: LadderDiagnostics,
+    /// The mode and strategy when the row was taken.
+    mode: LodMode,
+    strategy: StrategyKind,
 }
 
 /// The run's state.
@@ -470,6 +484,9 @@ pub(crate) fn run(args: Vec<String>) -> AppExit {
         strategy: options.strategy,
         value: options.value,
         ..default()
+    })
+    .insert_resource(BenefitReport {
+        enabled: options.benefit,
     })
     .insert_resource(WindSettings {
         enabled: options.wind,
@@ -942,6 +959,7 @@ fn measure(
     stats: Res<ForestRenderStats>,
     lod: Res<LodDiagnostics>,
     ladders: Res<LadderDiagnostics>,
+    budget: Res<FrameBudget>,
     mut exit: MessageWriter<AppExit>,
 ) {
     // Frames count from the first frame the pass really drew the forest (every pipeline
@@ -973,6 +991,8 @@ fn measure(
                 pass_ms: stats.gpu_time_ms,
                 drawn: stats.counts.triangles + stats.counts.lines + stats.counts.points,
                 ladders: ladders.clone(),
+                mode: budget.mode,
+                strategy: budget.strategy,
             });
             run.pending.pop_front();
         }
@@ -1153,7 +1173,44 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("ladder_levels", |r| {
         levels_field(&r.ladders.shown_per_level)
     }),
+    ("mode", |r| mode_name(r.mode).to_owned()),
+    ("strategy", |r| strategy_name(r.strategy).to_owned()),
+    ("benefit", |r| ratio(r.diagnostics.benefit)),
+    ("benefit_bound", |r| ratio(r.diagnostics.benefit_bound)),
+    ("value_stage_ms", |r| ms(r.diagnostics.value_stage_ms)),
+    ("budget_stage_ms", |r| ms(r.diagnostics.budget_stage_ms)),
+    ("select_stage_ms", |r| ms(r.diagnostics.select_stage_ms)),
 ];
+
+/// The modes' command-line names.
+const MODES: [(&str, LodMode); 4] = [
+    ("tclod", LodMode::Tclod),
+    ("tc", LodMode::Tc),
+    ("static", LodMode::Static),
+    ("unlimited", LodMode::Unlimited),
+];
+
+/// The strategies' command-line names.
+const STRATEGIES: [(&str, StrategyKind); 4] = [
+    ("robin-hood", StrategyKind::RobinHood),
+    ("funkhouser", StrategyKind::FunkhouserSequin),
+    (
+        "funkhouser-incremental",
+        StrategyKind::FunkhouserIncremental,
+    ),
+    ("triangle-budget", StrategyKind::TriangleBudget),
+];
+
+fn mode_name(mode: LodMode) -> &'static str {
+    MODES.iter().find(|m| m.1 == mode).map_or("?", |m| m.0)
+}
+
+fn strategy_name(strategy: StrategyKind) -> &'static str {
+    STRATEGIES
+        .iter()
+        .find(|s| s.1 == strategy)
+        .map_or("?", |s| s.0)
+}
 
 /// Counts per level as `a/b/c`.
 fn levels_field(counts: &[u32]) -> String {

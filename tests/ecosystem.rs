@@ -85,7 +85,13 @@ fn faults_keep_the_mesh_valid_and_heights_queryable() {
 
 #[test]
 fn placement_keeps_counts_cells_and_terrain_and_is_deterministic() {
-    for name in ["default", "trees-1000", "trees-2000"] {
+    for name in [
+        "default",
+        "trees-1000",
+        "trees-2000",
+        "trees-20000",
+        "trees-100000",
+    ] {
         let desc = shipped(name);
         let layout = desc.layout().unwrap();
         let expected: usize = desc.species.iter().map(|s| s.count as usize).sum();

@@ -154,6 +154,81 @@ pub fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
     bound
 }
 
+/// The benefit of drawing an object of `value` whose full detail costs `full` with
+/// `cost`: `value · √(cost / full)` (capped at `value`; `value` when full detail is free).
+/// The benefit model of the app's ladders (`lod`), in which a representation's accuracy
+/// grows with the square root of its share of the full cost.
+pub fn sqrt_benefit(value: f32, full: f32, cost: f32) -> f64 {
+    let value = f64::from(value.max(0.0));
+    if !(full > 0.0) {
+        return value;
+    }
+    value * (f64::from(cost.max(0.0)) / f64::from(full)).min(1.0).sqrt()
+}
+
+/// The largest total [`sqrt_benefit`] of `objects` (`(value, full cost)` each, any cost
+/// in `0..=full` allowed) within `budget`: an upper bound on what any selection of
+/// representations on that benefit curve can reach, and the LP bound of ladders sampled
+/// on it as the samples grow dense. O(n log n).
+///
+/// At the optimum every object not at full detail gets `cost = μ · value² / full` for one
+/// `μ`; objects whose full cost is reached first are capped there.
+pub fn sqrt_benefit_bound(objects: &[(f32, f32)], budget: f32) -> f64 {
+    let budget = f64::from(sanitize_time(budget));
+    let mut bound = 0.0;
+    // Per object that must share the budget: the μ at which it reaches full detail, its
+    // full cost, and value² / full (its cost per unit of μ before that).
+    let mut sharing: Vec<(f64, f64, f64)> = Vec::with_capacity(objects.len());
+    for &(value, full) in objects {
+        let value = f64::from(if value.is_finite() {
+            value.max(0.0)
+        } else {
+            0.0
+        });
+        if value == 0.0 {
+            continue;
+        }
+        let full = f64::from(if full.is_finite() { full.max(0.0) } else { 0.0 });
+        if full == 0.0 {
+            bound += value;
+            continue;
+        }
+        sharing.push((full * full / (value * value), full, value * value / full));
+    }
+    if sharing.iter().map(|s| s.1).sum::<f64>() <= budget {
+        return bound + objects_at_full(&sharing);
+    }
+    sharing.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Sweep μ up through the breakpoints: cost(μ) = Σ capped full + μ Σ uncapped slope.
+    let mut capped_cost = 0.0;
+    let mut capped_value = 0.0;
+    let mut slope: f64 = sharing.iter().map(|s| s.2).sum();
+    for &(breakpoint, full, per_mu) in &sharing {
+        if capped_cost + breakpoint * slope >= budget {
+            break;
+        }
+        capped_cost += full;
+        capped_value += (per_mu * full).sqrt();
+        slope -= per_mu;
+    }
+    // Between breakpoints: the uncapped share what is left. Benefit of an uncapped
+    // object: value · √(μ value² / full²) = √μ · value² / full.
+    let mu = if slope > 0.0 {
+        ((budget - capped_cost) / slope).max(0.0)
+    } else {
+        0.0
+    };
+    bound + capped_value + mu.sqrt() * slope
+}
+
+/// Σ value over objects described as `(breakpoint, full, value² / full)`.
+fn objects_at_full(sharing: &[(f64, f64, f64)]) -> f64 {
+    sharing
+        .iter()
+        .map(|&(_, full, per_mu)| (per_mu * full).sqrt())
+        .sum()
+}
+
 /// The best benefit over the complete representations of `hierarchy` (every leaf covered
 /// by exactly one impostor of itself or of an ancestor) within `budget`, or nothing at all
 /// — the constrained problem the hierarchical strategy approximates.
@@ -297,5 +372,83 @@ mod tests {
         assert_relative_eq!(hierarchy_optimum(&h, 1.5).unwrap(), 4.0);
         assert_relative_eq!(hierarchy_optimum(&h, 5.0).unwrap(), 11.0);
         assert_relative_eq!(hierarchy_optimum(&h, 8.0).unwrap(), 16.0);
+    }
+
+    #[test]
+    fn the_sqrt_benefit_bound_caps_ladders_on_its_curve_and_is_reached_by_dense_ones() {
+        use crate::rng::SplitMix64;
+        let mut rng = SplitMix64::new(7);
+        for _ in 0..200 {
+            let n = 1 + (rng.next_u64() % 12) as usize;
+            let objects: Vec<(f32, f32)> = (0..n)
+                .map(|_| {
+                    let value = if rng.next_u64() % 7 == 0 {
+                        0.0
+                    } else {
+                        rng.unit() * 10.0
+                    };
+                    let full = if rng.next_u64() % 9 == 0 {
+                        0.0
+                    } else {
+                        rng.unit() * 5.0
+                    };
+                    (value, full)
+                })
+                .collect();
+            let total: f32 = objects.iter().map(|o| o.1).sum();
+            let budget = rng.unit() * total * 1.2;
+            let bound = sqrt_benefit_bound(&objects, budget);
+            // Ladders on the curve, 1024 rungs each: their LP bound is below, and close
+            // unless the budget is so small that a rung's step matters (the LP bound
+            // leaves out levels dearer than the whole budget).
+            let mut problem = BudgetProblem::new();
+            for &(value, full) in &objects {
+                let ladder: Vec<Level> = (0..=1024)
+                    .rev()
+                    .map(|k| {
+                        let cost = full * k as f32 / 1024.0;
+                        Level::new(cost, sqrt_benefit(value, full, cost) as f32)
+                    })
+                    .collect();
+                problem
+                    .push_object(
+                        ObjectDesc {
+                            value,
+                            ..Default::default()
+                        },
+                        &ladder,
+                    )
+                    .unwrap();
+            }
+            let sampled = lp_upper_bound(&problem, budget);
+            assert!(
+                sampled <= bound * (1.0 + 1e-4) + 1e-6,
+                "{sampled} > {bound} ({objects:?}, {budget})"
+            );
+            assert!(
+                budget < 0.1 * total || sampled >= bound * 0.97 - 1e-6,
+                "{sampled} far below {bound} ({objects:?}, {budget})"
+            );
+        }
+    }
+
+    #[test]
+    fn the_sqrt_benefit_bound_handles_the_edges() {
+        // Everything fits: every value.
+        assert!((sqrt_benefit_bound(&[(2.0, 1.0), (3.0, 1.0)], 5.0) - 5.0).abs() < 1e-9);
+        // No budget: only what is free.
+        assert!((sqrt_benefit_bound(&[(2.0, 1.0), (3.0, 0.0)], 0.0) - 3.0).abs() < 1e-9);
+        // Two equal objects, half their total: each at half its cost, √½ of its value.
+        let half = sqrt_benefit_bound(&[(1.0, 1.0), (1.0, 1.0)], 1.0);
+        assert!((half - 2.0 * 0.5_f64.sqrt()).abs() < 1e-9, "{half}");
+        // Bad numbers are ignored, never NaN.
+        let b = sqrt_benefit_bound(
+            &[(f32::NAN, 1.0), (1.0, f32::INFINITY), (1.0, -1.0)],
+            f32::NAN,
+        );
+        assert!(b.is_finite());
+        assert_eq!(sqrt_benefit(1.0, 4.0, 1.0), 0.5);
+        assert_eq!(sqrt_benefit(1.0, 4.0, 9.0), 1.0);
+        assert_eq!(sqrt_benefit(2.0, 0.0, 0.0), 2.0);
     }
 }

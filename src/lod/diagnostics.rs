@@ -68,6 +68,12 @@ pub struct LodDiagnostics {
     pub truncated: u32,
     /// Visible objects drawn with nothing (always 0 with Robin Hood).
     pub undrawn: u32,
+    /// The selection's benefit ([`BenefitReport`](super::BenefitReport); 0 when it is
+    /// off or the mode has no budget).
+    pub benefit: f32,
+    /// The best benefit any selection could reach within the rendering time (same
+    /// conditions). `benefit / benefit_bound` is the strategy's share of the optimum.
+    pub benefit_bound: f32,
     /// Time of the Value stage, ms.
     pub value_stage_ms: f32,
     /// Time of the Budget stage, ms.

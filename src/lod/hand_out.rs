@@ -2,21 +2,25 @@
 //! handed out by the configured strategy with each object's search inside the hand-out,
 //! and the chosen lists written to the instances.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 
 use super::select::{self, LeafMethod, PrimitiveCosts, VisibleGroup};
 use super::value::{Object, Part, VisibleTree};
 use super::{
-    FrameBudget, LADDER_FRACTIONS, LadderObjects, LodDiagnostics, LodFrame, LodMode, StrategyKind,
-    TARGET_WARNING_SECS,
+    BenefitReport, FrameBudget, LADDER_FRACTIONS, LadderObjects, LodDiagnostics, LodFrame, LodMode,
+    StrategyKind, TARGET_WARNING_SECS,
 };
-use crate::budget::{BudgetStrategy, Fit, Level, ObjectDesc, PreviousSelection};
+use crate::budget::{BudgetStrategy, Fit, Level, ObjectDesc, PreviousSelection, oracle};
 use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction};
 use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::instance::ForestInstances;
 use crate::tree::TreeModel;
+
+/// Time given to a search that is to find an object's full detail, seconds: more than
+/// any object's full detail costs.
+const FULL_DETAIL_TIME: f32 = 1.0e6;
 
 pub(super) fn hand_out_time(
     mut frame: ResMut<LodFrame>,
@@ -27,6 +31,7 @@ pub(super) fn hand_out_time(
     time: Res<Time<Real>>,
     mut diagnostics: ResMut<LodDiagnostics>,
     mut ladders: ResMut<LadderObjects>,
+    report: Res<BenefitReport>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -118,6 +123,9 @@ pub(super) fn hand_out_time(
     let mut undrawn = 0;
     let mut floor = 0.0;
     let mut floor_excess = 0.0;
+    let mut benefit = 0.0;
+    let mut benefit_bound = 0.0;
+    let mut report_time = Duration::ZERO;
     match budget.mode {
         LodMode::Unlimited | LodMode::Static => {
             for (tree, list) in frame.trees.iter().zip(&mut frame.lists) {
@@ -260,7 +268,7 @@ pub(super) fn hand_out_time(
                 frame.rung_times.clear();
                 frame.next_previous.clear();
                 for (i, &object) in objects.iter().enumerate() {
-                    let full = search(i, 1.0e6, scratch).cost;
+                    let full = search(i, FULL_DETAIL_TIME, scratch).cost;
                     let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
                     let mut times = [0.0; LADDER_FRACTIONS.len()];
                     let mut previous_cost = f32::INFINITY;
@@ -317,6 +325,30 @@ pub(super) fn hand_out_time(
                 core::mem::swap(&mut frame.previous, &mut frame.next_previous);
                 stats
             };
+            if report.enabled {
+                let report_start = Instant::now();
+                let full: Vec<f32> = (0..objects.len())
+                    .map(|i| search(i, FULL_DETAIL_TIME, scratch).cost)
+                    .collect();
+                benefit = frame
+                    .allocations
+                    .iter()
+                    .zip(&frame.values)
+                    .zip(&full)
+                    .map(|((a, &value), &full)| {
+                        let used = if a.level.is_some() { a.used } else { 0.0 };
+                        oracle::sqrt_benefit(value, full, used)
+                    })
+                    .sum::<f64>() as f32;
+                let pairs: Vec<(f32, f32)> = frame
+                    .values
+                    .iter()
+                    .copied()
+                    .zip(full.iter().copied())
+                    .collect();
+                benefit_bound = oracle::sqrt_benefit_bound(&pairs, rendering) as f32;
+                report_time = report_start.elapsed();
+            }
             predicted = stats.used;
             truncated = stats.truncated;
             undrawn = stats.dropped;
@@ -379,8 +411,10 @@ pub(super) fn hand_out_time(
         counts,
         truncated,
         undrawn,
+        benefit,
+        benefit_bound,
         value_stage_ms: frame.value_ms,
-        budget_stage_ms: start.elapsed().as_secs_f32() * 1000.0,
+        budget_stage_ms: (start.elapsed() - report_time).as_secs_f32() * 1000.0,
         select_stage_ms: 0.0,
         target_below_logic,
     };

@@ -35,7 +35,9 @@ mod settings;
 mod value;
 
 pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
-pub use settings::{FrameBudget, LADDER_FRACTIONS, LodMode, StrategyKind, TARGET_WARNING_SECS};
+pub use settings::{
+    BenefitReport, FrameBudget, LADDER_FRACTIONS, LodMode, StrategyKind, TARGET_WARNING_SECS,
+};
 pub use value::UNIFORM_DEPTH_RADII;
 
 use bevy::platform::collections::HashMap;
@@ -69,7 +71,9 @@ impl Plugin for LodPlugin {
         crate::core_plugin::use_instance_table(app);
         app.register_type::<FrameBudget>()
             .register_type::<LodDiagnostics>()
+            .register_type::<BenefitReport>()
             .init_resource::<FrameBudget>()
+            .init_resource::<BenefitReport>()
             .init_resource::<TreeModelsVersion>()
             .init_resource::<LodDiagnostics>()
             .init_resource::<LodFrame>()

@@ -82,6 +82,25 @@ impl Default for FrameBudget {
     }
 }
 
+/// Whether the Budget stage also scores its hand-out each frame, into
+/// [`LodDiagnostics::benefit`](super::LodDiagnostics::benefit) and
+/// [`benefit_bound`](super::LodDiagnostics::benefit_bound): how much of the best possible
+/// benefit the strategy reached. For evaluation (the forest example's `--record`); it
+/// searches every visible object once more at full detail, which takes about as long as
+/// the hand-out itself, and is left out of `budget_stage_ms`. Default: off.
+///
+/// The benefit is the ladders' model, `value · √(cost / full cost)` per object
+/// ([`sqrt_benefit`](crate::budget::oracle::sqrt_benefit)); the bound is its best total
+/// within the rendering time ([`sqrt_benefit_bound`](crate::budget::oracle::sqrt_benefit_bound)),
+/// which no strategy can exceed except where Robin Hood's cheapest representations alone
+/// exceed the rendering time.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
+#[reflect(Resource)]
+pub struct BenefitReport {
+    /// Score the hand-out. Default: `false`.
+    pub enabled: bool,
+}
+
 /// The fractions of an object's full-detail time at which its ladder's rungs are searched
 /// for the ladder strategies (best → cheapest; 0 gives the cheapest representation).
 pub const LADDER_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
