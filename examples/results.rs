@@ -43,6 +43,8 @@ struct Frame {
     benefit_bound: f64,
     /// Value, budget and select stages together.
     stages_ms: f64,
+    /// Visible objects drawn with nothing.
+    undrawn: f64,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -78,6 +80,8 @@ struct Stats {
     /// Mean of benefit / bound over the frames with a bound, percent (None without).
     benefit_pct: Option<f64>,
     stages_ms: f64,
+    /// Mean visible objects drawn with nothing per frame.
+    undrawn: f64,
 }
 
 impl Stats {
@@ -99,6 +103,7 @@ impl Stats {
             benefit_pct: (!scored.is_empty())
                 .then(|| scored.iter().sum::<f64>() / scored.len() as f64),
             stages_ms: frames.iter().map(|f| f.stages_ms).sum::<f64>() / n,
+            undrawn: frames.iter().map(|f| f.undrawn).sum::<f64>() / n,
         }
     }
 }
@@ -195,6 +200,7 @@ fn read_run(csv: &Path) -> Result<Option<Run>, String> {
         column("target_ms")?,
     );
     let (benefit, bound) = (optional("benefit"), optional("benefit_bound"));
+    let undrawn = column("undrawn")?;
     let stages: Vec<Vec<f64>> = ["value_stage_ms", "budget_stage_ms", "select_stage_ms"]
         .into_iter()
         .map(optional)
@@ -209,6 +215,7 @@ fn read_run(csv: &Path) -> Result<Option<Run>, String> {
             benefit: at(&benefit, i),
             benefit_bound: at(&bound, i),
             stages_ms: stages.iter().map(|s| at(s, i)).sum(),
+            undrawn: at(&undrawn, i),
         })
         .collect();
     let target_ms = target
@@ -418,7 +425,8 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
          share slower than 1.1 × target, *pred err* the mean |predicted − measured| / measured frame time. \
          **Benefit**: each frame's benefit (value × √(cost / full cost) per object, the ladders' model) as a \
          share of the best any selection could reach within the same rendering time (`budget::oracle::sqrt_benefit_bound`), \
-         mean over binding frames; above 100% only where Robin Hood's cheapest representations alone overran. \
+         mean over binding frames; above 100% only where Robin Hood's cheapest representations alone overran; \
+         *dropped*: visible objects drawn with nothing, mean per binding frame (Robin Hood never drops one). \
          *stages*: the value, budget and select stages per frame. **Goals** (binding frames; for TC and TCLOD): mean \
          within ±3% of the target, avg error ≤ 5%, over ≤ 5%, pred err ≤ 5% or 1.5 × the noise floor's.\n"
     )?;
@@ -481,11 +489,11 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
         }
         writeln!(
             md,
-            "| target ms | mode | strategy | whole: mean ms | std | avg err % | binding frames | mean vs target | avg err % | p95 ms | p99 ms | over % | pred err % | benefit % of bound | stages ms | goals |"
+            "| target ms | mode | strategy | whole: mean ms | std | avg err % | binding frames | mean vs target | avg err % | p95 ms | p99 ms | over % | pred err % | benefit % of bound | dropped | stages ms | goals |"
         )?;
         writeln!(
             md,
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
         )?;
         let mut timed: Vec<&Run> = group
             .iter()
@@ -535,7 +543,7 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
             };
             writeln!(
                 md,
-                "| {:.1} | {} | {}{} | {:.1} | {:.1} | {} | {} | {:+.1}% | {} | {:.1} | {:.1} | {:.1} | {} | {} | {:.2} | {goals} |",
+                "| {:.1} | {} | {}{} | {:.1} | {:.1} | {} | {} | {:+.1}% | {} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {:.2} | {goals} |",
                 run.target_ms,
                 run.mode,
                 run.strategy,
@@ -555,6 +563,7 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
                 bind.frames.over_pct,
                 pct(bind.prediction_err),
                 bind.benefit_pct.map_or("—".into(), |b| format!("{b:.1}")),
+                bind.undrawn,
                 whole.stages_ms,
             )?;
         }
