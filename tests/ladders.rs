@@ -119,23 +119,31 @@ fn bad_meshes_and_ratios_are_errors() {
 }
 
 #[test]
-fn hysteresis_holds_a_one_level_improvement_and_lets_cheaper_levels_through() {
+fn hysteresis_holds_one_level_changes_either_way_and_lets_jumps_through() {
     let mut state = LadderState::showing(2);
     // One frame wanting one level better: held.
+    assert!(state.holds(1, 3));
     assert!(!state.settle(1, 3));
     assert_eq!(state.shown, 2);
     assert!(!state.settle(2, 3));
-    // Three frames in a row: shown.
+    // Three frames in a row: shown; `holds` says so beforehand.
     assert!(!state.settle(1, 3));
     assert!(!state.settle(1, 3));
+    assert!(!state.holds(1, 3));
     assert!(state.settle(1, 3));
     assert_eq!(state.shown, 1);
-    // Cheaper: at once (a held dearer level would spend others' time).
+    // One level cheaper: held as well, then shown.
+    assert!(!state.settle(2, 3));
+    assert!(!state.settle(2, 3));
+    assert_eq!(state.shown, 1);
     assert!(state.settle(2, 3));
     assert_eq!(state.shown, 2);
-    // Two levels better: at once.
+    // Two levels away: at once, either way.
+    assert!(!state.holds(0, 3));
     assert!(state.settle(0, 3));
     assert_eq!(state.shown, 0);
+    assert!(state.settle(2, 3));
+    assert_eq!(state.shown, 2);
     // An interrupted streak starts again.
     let mut state = LadderState::showing(3);
     state.settle(2, 3);
@@ -143,6 +151,31 @@ fn hysteresis_holds_a_one_level_improvement_and_lets_cheaper_levels_through() {
     state.settle(3, 3);
     assert!(!state.settle(2, 3));
     assert_eq!(state.shown, 3);
+    // One frame of hysteresis (or none): no holding.
+    assert!(!LadderState::showing(3).holds(2, 1));
+    assert!(!LadderState::showing(3).holds(4, 0));
+}
+
+#[test]
+fn the_budget_pays_for_the_level_the_hysteresis_holds() {
+    use bevy_sherwood::lod::select::LadderHold;
+    let hold = LadderHold {
+        shown: 2,
+        better: true,
+        cheaper: false,
+    };
+    assert_eq!(hold.shown_for(1), 2);
+    assert_eq!(hold.shown_for(3), 3);
+    assert_eq!(hold.shown_for(0), 0);
+    assert_eq!(hold.shown_for(2), 2);
+    let hold = LadderHold {
+        cheaper: true,
+        better: false,
+        ..hold
+    };
+    assert_eq!(hold.shown_for(3), 2);
+    assert_eq!(hold.shown_for(1), 1);
+    assert_eq!(hold.shown_for(4), 4);
 }
 
 const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
@@ -428,4 +461,69 @@ fn lod_named_siblings_wait_for_their_meshes() {
     app.update();
     assert!(app.world().get::<LodLadder>(primitive).is_some());
     assert!(app.world().get::<LadderFromLodNames>(root).is_none());
+}
+
+#[test]
+fn the_hand_out_pays_for_the_levels_shown_while_the_hysteresis_holds() {
+    use bevy_sherwood::cost::{CostModel, PrimitiveCosts};
+    let (mut app, spheres) = app(20);
+    app.world_mut()
+        .resource_mut::<LadderSettings>()
+        .hysteresis_frames = 4;
+    let (mut held, mut switched) = (0, 0);
+    // Generous, then tighter and tighter for a while each, a one-frame dip, generous again.
+    let targets = [
+        (100_000.0, 2),
+        (90.0, 6),
+        (60.0, 6),
+        (30.0, 6),
+        (400.0, 1),
+        (30.0, 2),
+        (400.0, 8),
+    ];
+    for target in targets
+        .into_iter()
+        .flat_map(|(t, n)| std::iter::repeat_n(t, n))
+    {
+        let d = frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, target);
+        let now = shown(&app, &spheres);
+        let ladders = app.world().resource::<LadderDiagnostics>().clone();
+        assert_eq!(
+            ladders.shown_per_level.iter().sum::<u32>(),
+            20,
+            "all in view"
+        );
+        let calibration = app.world().resource::<CostModel>().calibration().clone();
+        let prices = PrimitiveCosts::from_calibration(&calibration, 1.0);
+        let paid: f32 = spheres
+            .iter()
+            .zip(&now)
+            .map(|(&e, &level)| {
+                let ladder = app.world().get::<LodLadder>(e).unwrap();
+                prices.mesh(ladder.levels()[level as usize].triangles)
+            })
+            .sum();
+        assert!(
+            (d.calibrated.meshes - paid).abs() <= 1e-3 * paid.max(1e-9),
+            "at {target} ms the budget paid {} for meshes showing {:?} that cost {paid}",
+            d.calibrated.meshes,
+            now
+        );
+        held += spheres
+            .iter()
+            .filter(|&&e| {
+                app.world()
+                    .get::<LadderState>(e)
+                    .unwrap()
+                    .pending()
+                    .is_some()
+            })
+            .count();
+        switched += ladders.switches;
+    }
+    assert!(
+        held > 0,
+        "no level was ever held: the test saw no hysteresis"
+    );
+    assert!(switched > 0, "no level ever changed");
 }

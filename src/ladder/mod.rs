@@ -15,10 +15,11 @@
 //! Two things keep levels from flickering. The budget keeps the level shown while it
 //! fits the entity's time and moves to a better one only when that costs at most
 //! [`LADDER_UPGRADE_FRACTION`](crate::lod::select::LADDER_UPGRADE_FRACTION) of it; and a
-//! level one step better than the one shown is shown only once the choice has stayed
-//! for [`LadderSettings::hysteresis_frames`] frames ([`LadderState::settle`]). A cheaper
-//! level, or one two steps better, shows at once: a held dearer level would spend time
-//! the budget gave to others.
+//! level one step better or cheaper than the one shown is shown only once the choice has
+//! stayed for [`LadderSettings::hysteresis_frames`] frames ([`LadderState::settle`]); a
+//! level two or more steps away shows at once. The budget pays for the level shown, not
+//! the one chosen, so a held dearer level takes its time from the objects after it in
+//! the hand-out and the frame stays on time.
 
 mod generate;
 mod names;
@@ -30,6 +31,7 @@ use bevy::camera::primitives::Aabb;
 use bevy::prelude::*;
 
 use crate::culling::transform_bounds;
+use crate::lod::select::LadderHold;
 use crate::lod::{LadderEntry, LadderObjects};
 use crate::schedule::SherwoodSystems;
 use crate::tree::Bounds;
@@ -96,9 +98,10 @@ impl Default for LadderImportance {
 #[derive(Resource, Clone, Copy, Debug, PartialEq, Reflect)]
 #[reflect(Resource)]
 pub struct LadderSettings {
-    /// Frames the budget's choice must stay one level better than what is shown before
-    /// the better level is shown. Default: 5. A choice two or more levels better shows at
-    /// once; a cheaper choice always shows at once.
+    /// Frames the budget's choice must stay one level better, or one level cheaper, than
+    /// what is shown before it is shown. Default: 5. A choice two or more levels away
+    /// shows at once. The budget pays for the level actually shown, so a held dearer level
+    /// takes its time from the objects after it.
     pub hysteresis_frames: u32,
 }
 
@@ -131,30 +134,40 @@ impl LadderState {
     }
 
     /// Takes this frame's choice (`wanted`, 0 = best) and returns whether the shown level
-    /// changed: at once for a cheaper level or one two or more levels better; for one
-    /// level better only once it has been chosen `frames` frames in a row.
+    /// changed: at once for a level two or more steps away; for one step better or
+    /// cheaper only once it has been chosen `frames` frames in a row.
     pub fn settle(&mut self, wanted: u32, frames: u32) -> bool {
         if wanted == self.shown {
             self.candidate = None;
             return false;
         }
-        let better_by_one = wanted + 1 == self.shown;
-        if !better_by_one {
-            self.shown = wanted;
-            self.candidate = None;
-            return true;
+        if self.holds(wanted, frames) {
+            self.candidate = Some((wanted, self.streak_with(wanted)));
+            return false;
         }
-        let streak = match self.candidate {
+        self.shown = wanted;
+        self.candidate = None;
+        true
+    }
+
+    /// The level the budget chose instead of the one shown, held back by the hysteresis,
+    /// and for how many frames in a row it has been chosen.
+    pub fn pending(&self) -> Option<(u32, u32)> {
+        self.candidate
+    }
+
+    /// Whether a choice of `wanted` this frame would still keep the level shown: it is
+    /// one step away and, counting this frame, has not yet been chosen `frames` frames in
+    /// a row. What [`settle`](Self::settle) decides, without deciding it.
+    pub fn holds(&self, wanted: u32, frames: u32) -> bool {
+        wanted.abs_diff(self.shown) == 1 && self.streak_with(wanted) < frames
+    }
+
+    /// Frames in a row `wanted` will have been chosen, counting this one.
+    fn streak_with(&self, wanted: u32) -> u32 {
+        match self.candidate {
             Some((level, streak)) if level == wanted => streak + 1,
             _ => 1,
-        };
-        if streak >= frames {
-            self.shown = wanted;
-            self.candidate = None;
-            true
-        } else {
-            self.candidate = Some((wanted, streak));
-            false
         }
     }
 }
@@ -207,6 +220,7 @@ impl Plugin for LadderPlugin {
 /// Value stage reads them.
 fn gather_ladders(
     mut objects: ResMut<LadderObjects>,
+    settings: Res<LadderSettings>,
     ladders: Query<(
         Entity,
         &LodLadder,
@@ -239,7 +253,11 @@ fn gather_ladders(
             radius: world.half_extents().length(),
             area: 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x),
             importance: importance.map_or(1.0, |i| i.0.max(0.0)),
-            shown: state.shown,
+            hold: LadderHold {
+                shown: state.shown,
+                better: state.shown > 0 && state.holds(state.shown - 1, settings.hysteresis_frames),
+                cheaper: state.holds(state.shown + 1, settings.hysteresis_frames),
+            },
             levels: start..triangles.len() as u32,
         });
     }

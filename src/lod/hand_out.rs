@@ -94,11 +94,10 @@ pub(super) fn hand_out_time(
     // A ladder entry's level shown now, which Robin Hood's choice keeps while it fits
     // (the ladder strategies price exact rungs and keep their own previous choice).
     let keep_shown = budget.strategy == StrategyKind::RobinHood;
-    let shown_of = |e: u32| {
+    let hold_of = |e: u32| {
         ladder_entries
             .get(e as usize)
-            .filter(|_| keep_shown)
-            .map(|entry| entry.shown)
+            .map_or(select::LadderHold::default(), |entry| entry.hold)
     };
     // A ladder entry's levels' triangle counts, best first.
     let levels_of = |e: u32| {
@@ -109,14 +108,20 @@ pub(super) fn hand_out_time(
             })
             .unwrap_or(&[])
     };
-    // What a ladder entity shows with `time`, and its cost.
+    // The level the budget wants for a ladder entity with `time`, and the cost of what it
+    // will show: the hysteresis may hold the level shown, and then that is what is paid.
     let ladder_pick = |object: Object, time: f32| {
-        select::ladder_level(
-            &costs,
-            levels_of(object.index),
-            time,
-            shown_of(object.index),
-        )
+        let hold = hold_of(object.index);
+        let levels = levels_of(object.index);
+        let (wanted, chosen) =
+            select::ladder_level(&costs, levels, time, keep_shown.then_some(hold.shown));
+        let shown = hold.shown_for(wanted);
+        let paid = if shown == wanted {
+            chosen
+        } else {
+            select::ladder_cost(&costs, levels, shown)
+        };
+        (wanted, paid)
     };
     let mut truncated = 0;
     let mut wasted = 0.0;
@@ -159,8 +164,7 @@ pub(super) fn hand_out_time(
             }
             // Ladders show their best level (no static rule of their own).
             for object in frame.objects.iter().filter(|o| o.part == Part::Ladder) {
-                let (level, chosen) =
-                    select::ladder_level(&costs, levels_of(object.index), f32::INFINITY, None);
+                let (level, chosen) = ladder_pick(*object, f32::INFINITY);
                 predicted += take(chosen).cost;
                 ladder_chosen[object.index as usize] = Some(level);
             }

@@ -116,8 +116,8 @@ pub(crate) struct LadderEntry {
     /// weighs, as a tree part's triangle area.
     pub(crate) area: f32,
     pub(crate) importance: f32,
-    /// The level it shows now (0 = best).
-    pub(crate) shown: u32,
+    /// The level it shows now (0 = best), and what the hysteresis holds this frame.
+    pub(crate) hold: select::LadderHold,
     /// Its levels in [`LadderObjects::triangles`].
     pub(crate) levels: core::ops::Range<u32>,
 }

@@ -389,15 +389,51 @@ pub fn ladder_level(
         (_, Some(s)) if cost(s) <= time => s,
         _ => best_within(time).unwrap_or(last),
     };
-    let spent = cost(level);
-    let selected = Selected {
+    let selected = ladder_cost(costs, triangles, level as u32);
+    (
+        level as u32,
+        Selected {
+            truncated: selected.cost > time,
+            ..selected
+        },
+    )
+}
+
+/// What showing `level` of a ladder (`triangles` as for [`ladder_level`]) costs on Bevy's
+/// mesh path (the last level past the end; nothing for no levels).
+pub fn ladder_cost(costs: &PrimitiveCosts, triangles: &[u32], level: u32) -> Selected {
+    let Some(&count) = triangles.get(level as usize).or(triangles.last()) else {
+        return Selected::default();
+    };
+    let spent = costs.mesh(count);
+    Selected {
         cost: spent,
         meshes: spent,
-        truncated: spent > time,
         full: level == 0,
         ..Selected::default()
-    };
-    (level as u32, selected)
+    }
+}
+
+/// How the hysteresis treats a ladder entity this frame: the level it shows, and whether
+/// a choice one level better, or one level cheaper, would still be held back (the choice
+/// has not yet lasted the frames it must).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LadderHold {
+    /// The level shown (0 = best).
+    pub shown: u32,
+    /// A choice one level better would keep `shown`.
+    pub better: bool,
+    /// A choice one level cheaper would keep `shown`.
+    pub cheaper: bool,
+}
+
+impl LadderHold {
+    /// The level shown this frame when the budget chooses `wanted`.
+    pub fn shown_for(&self, wanted: u32) -> u32 {
+        let held =
+            (wanted + 1 == self.shown && self.better) || (wanted == self.shown + 1 && self.cheaper);
+        if held { self.shown } else { wanted }
+    }
 }
 
 /// What [`trunk_tc`] (`widths` `None`) or [`trunk_tclod`] draws with no time at all: the
