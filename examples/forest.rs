@@ -480,7 +480,10 @@ pub(crate) fn run(args: Vec<String>) -> AppExit {
     .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
     .insert_resource(FrameBudget {
         target_ms: options.target_ms,
-        mode: options.mode,
+        // Full detail until the pass has drawn the forest once (see `measure`): a
+        // strategy that drops every object at a tight target would otherwise never
+        // draw, and its pipelines would compile in the middle of the measured frames.
+        mode: LodMode::Unlimited,
         strategy: options.strategy,
         value: options.value,
         ..default()
@@ -959,14 +962,18 @@ fn measure(
     stats: Res<ForestRenderStats>,
     lod: Res<LodDiagnostics>,
     ladders: Res<LadderDiagnostics>,
-    budget: Res<FrameBudget>,
+    mut budget: ResMut<FrameBudget>,
     mut exit: MessageWriter<AppExit>,
 ) {
     // Frames count from the first frame the pass really drew the forest (every pipeline
-    // ready), whatever the warm-up.
+    // ready), whatever the warm-up; until then the forest is drawn at full detail, and
+    // the mode asked for starts with the warm-up.
     let drawn = stats.instances > 0 && samples.arrived().iter().any(|s| s.complete);
     if run.frame == 0 && !drawn {
         return;
+    }
+    if run.frame == 0 {
+        budget.mode = options.mode;
     }
     let run = &mut *run;
     // Each row pairs a frame's selection (its diagnostics) with what was measured of that

@@ -1,7 +1,8 @@
 # Shared by the measurement scripts: `run NAME FLAGS...` runs the forest example
 # ("$forest") headless with FLAGS, recording into "$RAW/NAME.csv" and its summary line into
 # "$RAW/NAME.summary" only once it completes; a run whose file exists is skipped, so the
-# scripts can be stopped and resumed.
+# scripts can be stopped and resumed. A run that fails is reported (and listed in
+# "$RAW/FAILED") and the script goes on; it is tried again when the script is run again.
 run() {
     local name=$1
     shift
@@ -9,7 +10,13 @@ run() {
         return
     fi
     echo "== $name: $*"
-    "$forest" --headless --summary --record "$RAW/$name.csv.part" "$@" > "$RAW/$name.summary.part"
+    local status=0
+    "$forest" --headless --summary --record "$RAW/$name.csv.part" "$@" > "$RAW/$name.summary.part" || status=$?
+    if [[ $status -ne 0 ]]; then
+        echo "== $name FAILED (exit $status)" | tee -a "$RAW/FAILED"
+        rm -f "$RAW/$name.csv.part" "$RAW/$name.summary.part"
+        return
+    fi
     cat "$RAW/$name.summary.part"
     mv "$RAW/$name.summary.part" "$RAW/$name.summary"
     mv "$RAW/$name.csv.part" "$RAW/$name.csv"
