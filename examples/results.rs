@@ -379,6 +379,11 @@ fn main() {
     }
 }
 
+/// A target fraction as a map key (fractions are short decimals from the file names).
+fn fraction_key(fraction: Option<f64>) -> u64 {
+    (fraction.unwrap_or(0.0) * 1e6).round() as u64
+}
+
 fn pct(x: f64) -> String {
     format!("{:.1}", 100.0 * x)
 }
@@ -437,12 +442,12 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
             .or_default()
             .push(run);
     }
-    // The noise floor is per forest (taken on one path): its prediction error sets the
-    // bar of every path of that forest.
-    let floors: BTreeMap<u32, (&Run, Floor)> = runs
+    // The noise floor is per forest and target fraction (taken on one path): its
+    // prediction error sets the bar of every path of that forest at that fraction.
+    let floors: BTreeMap<(u32, u64), (&Run, Floor)> = runs
         .iter()
         .filter(|r| r.kind == Kind::Hold)
-        .map(|r| (r.trees, (r, noise_floor(r))))
+        .map(|r| ((r.trees, fraction_key(r.fraction)), (r, noise_floor(r))))
         .collect();
     for ((trees, path), group) in &groups {
         writeln!(md, "## {trees} trees, {path} path\n")?;
@@ -468,24 +473,36 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
             unlimited.frames.iter().map(|f| f.visible).sum::<f64>()
                 / unlimited.frames.len().max(1) as f64
         )?;
-        let floor_pred = floors.get(trees).map(|f| f.1.stats.prediction_err);
-        if let Some((hold, floor)) = floors.get(trees)
-            && &hold.path == path
-        {
+        let held: Vec<&(&Run, Floor)> = floors
+            .range((*trees, 0)..=(*trees, u64::MAX))
+            .map(|(_, f)| f)
+            .collect();
+        if held.first().is_some_and(|(hold, _)| &hold.path == path) {
             writeln!(
                 md,
-                "Noise floor (identical frames: the camera held at the unlimited peak's frame, TCLOD Robin Hood at {} of the peak, {} frames): \
-                 frame-time variation {:.1}% over the run, {:.1}% within {NOISE_WINDOW}-frame windows (median); mean {:+.1}% of the target, \
-                 avg error {}%, over {:.1}%, pred err {}%.\n",
-                hold.fraction.unwrap_or(0.0),
-                floor.stats.frames.frames,
-                floor.whole_cv,
-                floor.window_cv,
-                100.0 * (floor.stats.frames.mean / hold.target_ms - 1.0),
-                pct(floor.stats.frames.avg_err),
-                floor.stats.frames.over_pct,
-                pct(floor.stats.prediction_err),
+                "Noise floor: identical frames, the camera held at the unlimited peak's frame, TCLOD Robin Hood at each target \
+                 (*variation*: the frame time's std / mean over the run, and its median within {NOISE_WINDOW}-frame windows).\n"
             )?;
+            writeln!(
+                md,
+                "| target ms | frames | variation % (run / windows) | mean vs target | avg err % | over % | pred err % |"
+            )?;
+            writeln!(md, "|---|---|---|---|---|---|---|")?;
+            for (hold, floor) in &held {
+                writeln!(
+                    md,
+                    "| {:.1} | {} | {:.1} / {:.1} | {:+.1}% | {} | {:.1} | {} |",
+                    hold.target_ms,
+                    floor.stats.frames.frames,
+                    floor.whole_cv,
+                    floor.window_cv,
+                    100.0 * (floor.stats.frames.mean / hold.target_ms - 1.0),
+                    pct(floor.stats.frames.avg_err),
+                    floor.stats.frames.over_pct,
+                    pct(floor.stats.prediction_err),
+                )?;
+            }
+            writeln!(md)?;
         }
         writeln!(
             md,
@@ -519,6 +536,9 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
             let whole = Stats::of(&run.all(), run.target_ms);
             let binding = run.binding(unlimited);
             let bind = Stats::of(&binding, run.target_ms);
+            let floor_pred = floors
+                .get(&(*trees, fraction_key(run.fraction)))
+                .map(|f| f.1.stats.prediction_err);
             let pred_bar = floor_pred.map_or(0.05, |f| (1.5 * f).max(0.05));
             let goals = if binding.is_empty() {
                 "no binding frames".to_owned()

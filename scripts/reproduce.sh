@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reproduces the paper's frame-time tables on this machine, every strategy side by side:
-# for each forest size, the identical-frame noise floor (the camera held at the unlimited
-# peak's frame of the first path); for each size and camera path at full length, an
+# for each forest size and target, the identical-frame noise floor (the camera held at
+# the unlimited peak's frame of the first path); for each size and camera path at full length, an
 # unlimited run, then each mode (TC, TCLOD) with each strategy at targets of 1/16 to 1/2
 # of the unlimited peak, plus TCLOD Robin Hood without online correction at the middle
 # target; every timed run scores its hand-out against the LP bound (--benefit). Then
@@ -70,9 +70,11 @@ for size in $SIZES; do
         read -r peak peak_frame < <(peak_of "${size}_${path}_unlimited")
         if [[ -z "$first_path" ]]; then
             first_path=$path
-            run "${size}_${path}_hold_${middle}" "${common[@]}" --mode tclod \
-                --target-ms "$(fraction_of "$peak" "$middle")" --hold-frame "$peak_frame" \
-                --frames "$HOLD_FRAMES" --benefit
+            for fraction in $FRACTIONS; do
+                run "${size}_${path}_hold_${fraction}" "${common[@]}" --mode tclod \
+                    --target-ms "$(fraction_of "$peak" "$fraction")" --hold-frame "$peak_frame" \
+                    --frames "$HOLD_FRAMES" --benefit
+            done
         fi
         for fraction in $FRACTIONS; do
             target=$(fraction_of "$peak" "$fraction")
