@@ -160,7 +160,7 @@ pub fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
 /// grows with the square root of its share of the full cost.
 pub fn sqrt_benefit(value: f32, full: f32, cost: f32) -> f64 {
     let value = f64::from(value.max(0.0));
-    if !(full > 0.0) {
+    if full.is_nan() || full <= 0.0 {
         return value;
     }
     value * (f64::from(cost.max(0.0)) / f64::from(full)).min(1.0).sqrt()
@@ -382,12 +382,12 @@ mod tests {
             let n = 1 + (rng.next_u64() % 12) as usize;
             let objects: Vec<(f32, f32)> = (0..n)
                 .map(|_| {
-                    let value = if rng.next_u64() % 7 == 0 {
+                    let value = if rng.next_u64().is_multiple_of(7) {
                         0.0
                     } else {
                         rng.unit() * 10.0
                     };
-                    let full = if rng.next_u64() % 9 == 0 {
+                    let full = if rng.next_u64().is_multiple_of(9) {
                         0.0
                     } else {
                         rng.unit() * 5.0
