@@ -83,9 +83,14 @@ pub(super) fn ladders_from_lod_names(
     names: Query<&Name>,
     parents: Query<&ChildOf>,
     mesh_entities: Query<&Mesh3d>,
-    meshes: Res<Assets<Mesh>>,
+    // Absent in an app without Bevy's mesh assets (a headless app): then there is
+    // nothing to make ladders of.
+    meshes: Option<Res<Assets<Mesh>>>,
     mut commands: Commands,
 ) {
+    let Some(meshes) = meshes else {
+        return;
+    };
     if roots.is_empty() || (spawned_names.is_empty() && !*waiting) {
         return;
     }
