@@ -202,17 +202,18 @@ pub(super) fn hand_out_time(
                     select::trunk_tc(m, &tree.view, &costs, given, list)
                 }
             };
-            // The list an object's choice goes to: its tree's, or scratch for a ladder.
-            fn list_of<'a>(
-                object: Object,
-                lists: &'a mut [TreeDrawList],
-                scratch: &'a mut TreeDrawList,
-            ) -> &'a mut TreeDrawList {
-                match object.part {
-                    Part::Ladder => scratch,
-                    _ => &mut lists[object.index as usize],
+            // Draws object `i` with `given` seconds: a tree part into its tree's list, a
+            // ladder entity's level into `ladder_chosen` (returned too); what it costs.
+            let mut draw = |i: usize, given: f32| {
+                let object = objects[i];
+                if object.part == Part::Ladder {
+                    let (level, chosen) = ladder_pick(object, given);
+                    ladder_chosen[object.index as usize] = Some(level);
+                    (chosen, Some(level))
+                } else {
+                    (search(i, given, &mut lists[object.index as usize]), None)
                 }
-            }
+            };
             let entity_of = |object: Object| match object.part {
                 Part::Ladder => ladder_entries[object.index as usize].entity,
                 _ => trees[object.index as usize].entity,
@@ -248,16 +249,10 @@ pub(super) fn hand_out_time(
                     &frame.floors,
                     rendering,
                     |i, given| {
-                        let object = objects[i];
-                        let chosen = take(search(i, given, list_of(object, lists, scratch)));
-                        let level = if object.part == Part::Ladder {
-                            let level = ladder_pick(object, given).0;
-                            ladder_chosen[object.index as usize] = Some(level);
-                            level
-                        } else {
-                            // 0: full detail, nothing more to buy.
-                            u32::from(!chosen.full)
-                        };
+                        let (chosen, ladder_level) = draw(i, given);
+                        let chosen = take(chosen);
+                        // A tree part's level: 0 at full detail, nothing more to buy.
+                        let level = ladder_level.unwrap_or(u32::from(!chosen.full));
                         Fit {
                             used: chosen.cost,
                             level,
@@ -316,11 +311,7 @@ pub(super) fn hand_out_time(
                     let object = objects[i];
                     if let Some(level) = allocation.level {
                         let time = frame.rung_times[i][level as usize];
-                        take(search(i, time, list_of(object, lists, scratch)));
-                        if object.part == Part::Ladder {
-                            ladder_chosen[object.index as usize] =
-                                Some(ladder_pick(object, time).0);
-                        }
+                        take(draw(i, time).0);
                         frame
                             .next_previous
                             .insert((entity_of(object), object.part), level);
