@@ -177,8 +177,8 @@ pub fn sqrt_benefit_bound(objects: &[(f32, f32)], budget: f32) -> f64 {
     let budget = f64::from(sanitize_time(budget));
     let mut bound = 0.0;
     // Per object that must share the budget: the μ at which it reaches full detail, its
-    // full cost, and value² / full (its cost per unit of μ before that).
-    let mut sharing: Vec<(f64, f64, f64)> = Vec::with_capacity(objects.len());
+    // full cost, value² / full (its cost per unit of μ before that), and its value.
+    let mut sharing: Vec<(f64, f64, f64, f64)> = Vec::with_capacity(objects.len());
     for &(value, full) in objects {
         let value = f64::from(if value.is_finite() {
             value.max(0.0)
@@ -188,27 +188,33 @@ pub fn sqrt_benefit_bound(objects: &[(f32, f32)], budget: f32) -> f64 {
         if value == 0.0 {
             continue;
         }
-        let full = f64::from(if full.is_finite() { full.max(0.0) } else { 0.0 });
+        // As `sqrt_benefit` sees it: an infinite full cost is never reached.
+        let full = f64::from(sanitize_time(full));
         if full == 0.0 {
             bound += value;
             continue;
         }
-        sharing.push((full * full / (value * value), full, value * value / full));
+        sharing.push((
+            full * full / (value * value),
+            full,
+            value * value / full,
+            value,
+        ));
     }
     if sharing.iter().map(|s| s.1).sum::<f64>() <= budget {
-        return bound + objects_at_full(&sharing);
+        return bound + sharing.iter().map(|s| s.3).sum::<f64>();
     }
     sharing.sort_by(|a, b| a.0.total_cmp(&b.0));
     // Sweep μ up through the breakpoints: cost(μ) = Σ capped full + μ Σ uncapped slope.
     let mut capped_cost = 0.0;
     let mut capped_value = 0.0;
     let mut slope: f64 = sharing.iter().map(|s| s.2).sum();
-    for &(breakpoint, full, per_mu) in &sharing {
+    for &(breakpoint, full, per_mu, value) in &sharing {
         if capped_cost + breakpoint * slope >= budget {
             break;
         }
         capped_cost += full;
-        capped_value += (per_mu * full).sqrt();
+        capped_value += value;
         slope -= per_mu;
     }
     // Between breakpoints: the uncapped share what is left. Benefit of an uncapped
@@ -219,14 +225,6 @@ pub fn sqrt_benefit_bound(objects: &[(f32, f32)], budget: f32) -> f64 {
         0.0
     };
     bound + capped_value + mu.sqrt() * slope
-}
-
-/// Σ value over objects described as `(breakpoint, full, value² / full)`.
-fn objects_at_full(sharing: &[(f64, f64, f64)]) -> f64 {
-    sharing
-        .iter()
-        .map(|&(_, full, per_mu)| (per_mu * full).sqrt())
-        .sum()
 }
 
 /// The best benefit over the complete representations of `hierarchy` (every leaf covered
@@ -447,6 +445,10 @@ mod tests {
             f32::NAN,
         );
         assert!(b.is_finite());
+        // An object whose full detail costs infinitely much gains nothing, as
+        // `sqrt_benefit` says.
+        assert_eq!(sqrt_benefit(1.0, f32::INFINITY, 1.0), 0.0);
+        assert!(sqrt_benefit_bound(&[(1.0, f32::INFINITY)], 1.0) < 1e-9);
         assert_eq!(sqrt_benefit(1.0, 4.0, 1.0), 0.5);
         assert_eq!(sqrt_benefit(1.0, 4.0, 9.0), 1.0);
         assert_eq!(sqrt_benefit(2.0, 0.0, 0.0), 2.0);
