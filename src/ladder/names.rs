@@ -65,7 +65,8 @@ pub fn mesh_triangles(mesh: &Mesh) -> Option<u32> {
     u32::try_from(triangles).ok()
 }
 
-/// Why a named group is not made into a ladder (and is left as spawned).
+/// What became of a named group: made into ladders, waiting for its meshes, or refused
+/// (and left as spawned).
 enum GroupOutcome {
     Made,
     /// A mesh is still loading: try again later.
