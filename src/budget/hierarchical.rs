@@ -319,6 +319,54 @@ impl HierarchicalLod {
         }
     }
 
+    /// Like [`solve`](Self::solve), but starting from `seed` (one entry per node of
+    /// `hierarchy`, e.g. last frame's selection carried over to this frame's hierarchy by
+    /// the caller's own node identities) instead of the previous solve's state: a
+    /// hierarchy whose shape changes from frame to frame (nodes coming into and out of
+    /// view) stays incremental.
+    ///
+    /// The seed is repaired into a complete representation, parents first: beneath an
+    /// explicit node everything is hidden; under an open node a child keeps its seeded
+    /// impostor (clamped to its ladder) or stays open when it has children, and a child
+    /// seeded [`NodeSelection::Hidden`] (new this frame) starts at its cheapest impostor,
+    /// or open when it has none. So every node starts represented; missing entries count
+    /// as hidden.
+    pub fn solve_from(
+        &mut self,
+        hierarchy: &LodHierarchy,
+        budget: f32,
+        seed: &[NodeSelection],
+    ) -> HierarchyOutcome {
+        let root = hierarchy.len();
+        self.state.clear();
+        self.state.resize(root + 1, State::Hidden);
+        self.state[root] = State::Implicit;
+        // Parents have higher indices than their children: walk downwards.
+        for node in (0..root).rev() {
+            let parent = hierarchy.parent(node as NodeId).map_or(root, |p| p as usize);
+            if self.state[parent] != State::Implicit {
+                continue;
+            }
+            let impostors = hierarchy.impostors(node as NodeId).len() as u32;
+            let has_children = !hierarchy.children(node as NodeId).is_empty();
+            let cheapest = || {
+                if impostors > 0 {
+                    State::Explicit(impostors - 1)
+                } else {
+                    State::Implicit
+                }
+            };
+            self.state[node] = match seed.get(node).copied().unwrap_or(NodeSelection::Hidden) {
+                NodeSelection::Impostor(k) if impostors > 0 => {
+                    State::Explicit(k.min(impostors - 1))
+                }
+                NodeSelection::Children if has_children => State::Implicit,
+                _ => cheapest(),
+            };
+        }
+        self.solve(hierarchy, budget)
+    }
+
     /// Sets a starting representation from per-leaf impostor indices, opening every group
     /// above them (used to seed from last frame's flat selection).
     fn seed_leaves(&mut self, hierarchy: &LodHierarchy, leaf_levels: &[u32]) {
@@ -782,6 +830,43 @@ mod tests {
         let out = lod.solve(&h, 0.5);
         assert_eq!(lod.selection(g), NodeSelection::Hidden);
         assert_eq!(out.cost, 0.0);
+    }
+
+    #[test]
+    fn seeded_with_its_own_selection_it_picks_up_where_it_left() {
+        let (h, a, b, g) = scene();
+        let mut lod = HierarchicalLod::new();
+        lod.solve(&h, 5.0);
+        let seed: Vec<NodeSelection> = (0..h.len() as NodeId).map(|n| lod.selection(n)).collect();
+        let mut fresh = HierarchicalLod::new();
+        let out = fresh.solve_from(&h, 5.0, &seed);
+        for n in [a, b, g] {
+            assert_eq!(fresh.selection(n), lod.selection(n));
+        }
+        assert_relative_eq!(out.cost, 5.0);
+    }
+
+    #[test]
+    fn a_seed_is_repaired_into_a_complete_representation() {
+        let (h, a, b, g) = scene();
+        // Nothing known (every node new): the group starts at its impostor, and a budget
+        // that fits it keeps the region represented.
+        let mut lod = HierarchicalLod::new();
+        let out = lod.solve_from(&h, 1.0, &[]);
+        assert_eq!(lod.selection(g), NodeSelection::Impostor(0));
+        assert_relative_eq!(out.cost, 1.0);
+        // An inconsistent seed (the group open, one member out of its ladder, the other
+        // unknown) starts from the members' nearest valid levels.
+        let seed = [
+            NodeSelection::Impostor(9),
+            NodeSelection::Hidden,
+            NodeSelection::Children,
+        ];
+        let out = lod.solve_from(&h, 2.0, &seed);
+        assert_eq!(lod.selection(g), NodeSelection::Children);
+        assert_eq!(lod.selection(a), NodeSelection::Impostor(1));
+        assert_eq!(lod.selection(b), NodeSelection::Impostor(1));
+        assert_relative_eq!(out.cost, 2.0);
     }
 
     #[test]

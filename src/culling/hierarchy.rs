@@ -605,6 +605,48 @@ impl BoxHierarchy {
         }
     }
 
+    /// Number of nodes (level order: node 0 is the root, a node's children follow its
+    /// level's nodes; see [`children`](Self::children)).
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// The box of `node` around its instances at rest ([`Bounds::EMPTY`] when it holds
+    /// none).
+    pub fn node_bounds(&self, node: usize) -> Bounds {
+        self.nodes[node].bounds
+    }
+
+    /// The instances below `node` (indices into the culled instances).
+    pub fn node_instances(&self, node: usize) -> &[u32] {
+        let (start, end) = self.nodes[node].instances;
+        &self.order[start as usize..end as usize]
+    }
+
+    /// How `node` was seen by the last [`cull`](Self::cull): the children of a node seen
+    /// entirely inside are [`NodeVisibility::Untested`] (and inside too).
+    pub fn node_visibility(&self, node: usize) -> NodeVisibility {
+        self.node_visibility[node]
+    }
+
+    /// The four children of `node`, or `None` for a leaf box.
+    pub fn children(&self, node: usize) -> Option<Range<usize>> {
+        let level = self.level_of(node);
+        (level < self.depth).then(|| {
+            let first = level_start(level + 1) + 4 * (node - level_start(level));
+            first..first + 4
+        })
+    }
+
+    /// The level of `node` (0 for the root, [`depth`](Self::depth) for leaf boxes).
+    pub fn level_of(&self, node: usize) -> u32 {
+        let mut level = 0;
+        while level < self.depth && node >= level_start(level + 1) {
+            level += 1;
+        }
+        level
+    }
+
     /// Instances grouped by leaf, as a range of instance indices per leaf (for reports).
     pub fn leaf_ranges(&self) -> impl Iterator<Item = Range<u32>> + '_ {
         let first_leaf = level_start(self.depth);

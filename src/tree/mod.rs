@@ -6,6 +6,7 @@ mod analyze;
 mod asset;
 #[cfg(feature = "gltf")]
 mod gltf;
+mod group;
 mod lod;
 #[cfg(feature = "render")]
 mod mesh;
@@ -23,6 +24,7 @@ pub use asset::{
 pub use gltf::{
     GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffer_uris, import_gltf,
 };
+pub use group::{GroupMember, GroupModelOptions, group_model};
 pub(crate) use lod::trunk_line_runs;
 pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
 #[cfg(feature = "render")]
