@@ -62,7 +62,7 @@ usage: forest [OPTIONS]
   --warmup N             frames excluded from statistics (default 60)
   --target-ms T          target frame time in ms (default 100)
   --mode tclod|tc|static|unlimited
-  --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget
+  --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget|hierarchical
   --value p8|p9|p10|p11
   --benefit              score each frame's hand-out (the record's benefit and
                          benefit_bound columns; adds about one hand-out's time to the
@@ -107,6 +107,8 @@ The record (--record) has one row per measured frame, times in ms:
   triangles, lines, points
                          primitives selected
   truncated, undrawn     objects drawn below their cheapest, objects not drawn
+  groups_drawn           group impostors drawn (hierarchical strategy)
+  trees_drawn            visible trees drawn on their own (not by a group)
   wasted_ms              rendering time handed out that nobody used
   overrun_ms             predicted rendering beyond the rendering time
   floor_ms, floor_excess_ms
@@ -704,7 +706,8 @@ fn keys(
             StrategyKind::RobinHood => StrategyKind::FunkhouserSequin,
             StrategyKind::FunkhouserSequin => StrategyKind::FunkhouserIncremental,
             StrategyKind::FunkhouserIncremental => StrategyKind::TriangleBudget,
-            StrategyKind::TriangleBudget => StrategyKind::RobinHood,
+            StrategyKind::TriangleBudget => StrategyKind::Hierarchical,
+            StrategyKind::Hierarchical => StrategyKind::RobinHood,
         };
         info!("strategy: {:?}", budget.strategy);
     }
@@ -1127,6 +1130,8 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("points", |r| r.diagnostics.counts.points.to_string()),
     ("truncated", |r| r.diagnostics.truncated.to_string()),
     ("undrawn", |r| r.diagnostics.undrawn.to_string()),
+    ("groups_drawn", |r| r.diagnostics.groups_drawn.to_string()),
+    ("trees_drawn", |r| r.diagnostics.trees_drawn.to_string()),
     ("wasted_ms", |r| ms(r.diagnostics.wasted_ms)),
     ("overrun_ms", |r| ms(r.diagnostics.overrun_ms)),
     ("floor_ms", |r| ms(r.diagnostics.floor_ms)),
@@ -1198,7 +1203,7 @@ const MODES: [(&str, LodMode); 4] = [
 ];
 
 /// The strategies' command-line names.
-const STRATEGIES: [(&str, StrategyKind); 4] = [
+const STRATEGIES: [(&str, StrategyKind); 5] = [
     ("robin-hood", StrategyKind::RobinHood),
     ("funkhouser", StrategyKind::FunkhouserSequin),
     (
@@ -1206,6 +1211,7 @@ const STRATEGIES: [(&str, StrategyKind); 4] = [
         StrategyKind::FunkhouserIncremental,
     ),
     ("triangle-budget", StrategyKind::TriangleBudget),
+    ("hierarchical", StrategyKind::Hierarchical),
 ];
 
 fn mode_name(mode: LodMode) -> &'static str {

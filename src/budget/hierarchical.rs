@@ -343,7 +343,9 @@ impl HierarchicalLod {
         self.state[root] = State::Implicit;
         // Parents have higher indices than their children: walk downwards.
         for node in (0..root).rev() {
-            let parent = hierarchy.parent(node as NodeId).map_or(root, |p| p as usize);
+            let parent = hierarchy
+                .parent(node as NodeId)
+                .map_or(root, |p| p as usize);
             if self.state[parent] != State::Implicit {
                 continue;
             }

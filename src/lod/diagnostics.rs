@@ -66,8 +66,15 @@ pub struct LodDiagnostics {
     pub counts: PrimitiveCounts,
     /// Objects drawn at their cheapest representation although it did not fit.
     pub truncated: u32,
-    /// Visible objects drawn with nothing (always 0 with Robin Hood).
+    /// Visible objects drawn with nothing (always 0 with Robin Hood and with the
+    /// hierarchical strategy, whose group impostors stand for the trees they cover).
     pub undrawn: u32,
+    /// Group impostors drawn ([`StrategyKind::Hierarchical`](super::StrategyKind::Hierarchical);
+    /// 0 otherwise).
+    pub groups_drawn: u32,
+    /// Visible trees drawn on their own rather than by a group impostor (with the
+    /// hierarchical strategy; every visible tree otherwise).
+    pub trees_drawn: u32,
     /// The selection's benefit ([`BenefitReport`](super::BenefitReport); 0 when it is
     /// off or the mode has no budget).
     pub benefit: f32,

@@ -6,14 +6,20 @@ use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 
+use super::groups::GroupImpostors;
+use super::hierarchical::{Drawn, HierarchicalCut, HierarchyInputs, Ladder};
 use super::select::{self, LeafMethod, PrimitiveCosts, VisibleGroup};
 use super::value::{Object, Part, VisibleTree};
 use super::{
     BenefitReport, FrameBudget, LADDER_FRACTIONS, LadderObjects, LodDiagnostics, LodFrame, LodMode,
     StrategyKind, TARGET_WARNING_SECS,
 };
-use crate::budget::{BudgetStrategy, Fit, Level, ObjectDesc, PreviousSelection, oracle};
+use crate::budget::{
+    Allocation, BudgetStats, BudgetStrategy, Fit, Level, MIN_DEPTH, ObjectDesc, PreviousSelection,
+    oracle,
+};
 use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction};
+use crate::culling::ForestCulling;
 use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::instance::ForestInstances;
 use crate::tree::TreeModel;
@@ -32,6 +38,9 @@ pub(super) fn hand_out_time(
     mut diagnostics: ResMut<LodDiagnostics>,
     mut ladders: ResMut<LadderObjects>,
     report: Res<BenefitReport>,
+    impostors: Res<GroupImpostors>,
+    culling: Option<Res<ForestCulling>>,
+    mut cut: ResMut<HierarchicalCut>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -131,6 +140,9 @@ pub(super) fn hand_out_time(
     let mut benefit = 0.0;
     let mut benefit_bound = 0.0;
     let mut report_time = Duration::ZERO;
+    let mut groups_drawn = 0;
+    // The hierarchical cut's benefit (its groups' included), for the report.
+    let mut cut_benefit = None;
     match budget.mode {
         LodMode::Unlimited | LodMode::Static => {
             for (tree, list) in frame.trees.iter().zip(&mut frame.lists) {
@@ -263,10 +275,8 @@ pub(super) fn hand_out_time(
                 )
             } else {
                 // Ladders: each object's representations at fractions of its full cost.
-                frame.problem.clear();
-                frame.rung_times.clear();
-                frame.next_previous.clear();
-                for (i, &object) in objects.iter().enumerate() {
+                let values = &frame.values;
+                let mut ladder_of = |i: usize| -> Ladder {
                     let full = search(i, FULL_DETAIL_TIME, scratch).cost;
                     let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
                     let mut times = [0.0; LADDER_FRACTIONS.len()];
@@ -275,66 +285,221 @@ pub(super) fn hand_out_time(
                         times[j] = full * fraction;
                         let cost = search(i, times[j], scratch).cost.min(previous_cost);
                         previous_cost = cost;
-                        let accuracy = if full > 0.0 {
-                            (cost / full).sqrt()
-                        } else {
-                            1.0
-                        };
-                        ladder[j] = Level::new(cost, frame.values[i] * accuracy);
+                        ladder[j] = Level::new(cost, values[i] * accuracy(cost, full));
                     }
-                    let key = (entity_of(object), object.part);
-                    let previous = frame
-                        .previous
-                        .get(&key)
-                        .map_or(PreviousSelection::New, |&l| PreviousSelection::Level(l));
-                    let desc = ObjectDesc {
-                        value: frame.values[i],
-                        complexity: frame.complexities[i],
-                        previous,
-                    };
-                    if frame.problem.push_object(desc, &ladder).is_err() {
-                        // Not expected: values and costs are finite by construction. Keep
-                        // the indices aligned with a free, worthless object.
-                        let _ = frame
-                            .problem
-                            .push_object(ObjectDesc::default(), &[Level::new(0.0, 0.0)]);
-                    }
-                    frame.rung_times.push(times);
-                }
-                let strategy: &mut dyn BudgetStrategy = match budget.strategy {
-                    StrategyKind::FunkhouserSequin => &mut frame.funkhouser,
-                    StrategyKind::FunkhouserIncremental => &mut frame.incremental,
-                    _ => &mut frame.triangle_budget,
+                    (ladder, times)
                 };
-                let stats = strategy.distribute(&frame.problem, rendering, &mut frame.allocations);
-                for (i, allocation) in frame.allocations.iter().enumerate() {
-                    let object = objects[i];
-                    if let Some(level) = allocation.level {
-                        let time = frame.rung_times[i][level as usize];
-                        take(draw(i, time).0);
-                        frame
-                            .next_previous
-                            .insert((entity_of(object), object.part), level);
+                if budget.strategy == StrategyKind::Hierarchical {
+                    let view = frame.view;
+                    let group_lists = &mut frame.group_lists;
+                    // A group impostor's search: its trunk and leaves each given `fraction`
+                    // of their full detail's time.
+                    let group_search =
+                        |node: usize, fraction: f32, list: &mut TreeDrawList| -> select::Selected {
+                            let (Some(g), Some(view)) =
+                                (impostors.nodes.get(node).and_then(Option::as_ref), view)
+                            else {
+                                return select::Selected::default();
+                            };
+                            let Some(m) = models.get(&g.model) else {
+                                return select::Selected::default();
+                            };
+                            let depth = |at: Vec3| view.depth(g.origin + at).max(MIN_DEPTH);
+                            let tree_view = select::TreeView {
+                                scale: 1.0,
+                                trunk_depth: depth(m.trunk_area_center),
+                                projection: view.projection(),
+                            };
+                            let trunk = |time: f32, list: &mut TreeDrawList| {
+                                if tclod {
+                                    select::trunk_tclod(
+                                        m,
+                                        &tree_view,
+                                        &costs,
+                                        budget.line_widths,
+                                        time,
+                                        list,
+                                    )
+                                } else {
+                                    select::trunk_tc(m, &tree_view, &costs, time, list)
+                                }
+                            };
+                            let leaves = |time: f32, list: &mut TreeDrawList| {
+                                select::leaves_at_depth(
+                                    m,
+                                    &tree_view,
+                                    &costs,
+                                    leaf_method,
+                                    depth(m.bounds.center()),
+                                    time,
+                                    list,
+                                )
+                            };
+                            let full_trunk = trunk(FULL_DETAIL_TIME, list).cost;
+                            let full_leaves = leaves(FULL_DETAIL_TIME, list).cost;
+                            select::Selected::both(
+                                trunk(full_trunk * fraction, list),
+                                leaves(full_leaves * fraction, list),
+                            )
+                        };
+                    let boxes = culling.as_deref().and_then(|c| c.hierarchy.as_ref());
+                    // Impostors built for another layout than this frame's are not used.
+                    let groups_current = culling.as_deref().is_some_and(|c| {
+                        impostors.current(c.layout_version(), boxes.map_or(0, |b| b.depth()))
+                    });
+                    let inputs = HierarchyInputs {
+                        boxes,
+                        instances: culling.as_deref().map_or(0, |c| c.result.visibility.len()),
+                        trees,
+                        objects,
+                        values,
+                        ladders: ladder_entries,
+                        rendering,
+                    };
+                    let mut group_scratch = TreeDrawList::default();
+                    let mut group_ladder = |node: usize, value: f32, members_full: f32| {
+                        if !groups_current {
+                            return None;
+                        }
+                        impostors.nodes.get(node)?.as_ref()?;
+                        let scratch = &mut group_scratch;
+                        let full = group_search(node, 1.0, scratch).cost;
+                        let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
+                        let mut previous_cost = f32::INFINITY;
+                        for (j, &fraction) in LADDER_FRACTIONS.iter().enumerate() {
+                            let cost = group_search(node, fraction, scratch)
+                                .cost
+                                .min(previous_cost);
+                            previous_cost = cost;
+                            // Judged against its trees' full detail, not its own.
+                            ladder[j] =
+                                Level::new(cost, value * accuracy(cost, members_full.max(full)));
+                        }
+                        Some((ladder, LADDER_FRACTIONS))
+                    };
+                    let outcome = frame.hierarchical.solve(
+                        &inputs,
+                        &mut ladder_of,
+                        &mut group_ladder,
+                        &mut cut,
+                    );
+                    frame.allocations.clear();
+                    frame.allocations.resize(objects.len(), Allocation::DROPPED);
+                    let mut used = 0.0;
+                    let mut truncated = 0;
+                    let mut lists_used = 0;
+                    for drawn in &frame.hierarchical.drawn {
+                        match *drawn {
+                            Drawn::Object {
+                                object,
+                                level,
+                                time,
+                            } => {
+                                let chosen = take(draw(object as usize, time).0);
+                                used += chosen.cost;
+                                truncated += u32::from(chosen.truncated);
+                                frame.allocations[object as usize] =
+                                    Allocation::drawn(chosen.cost, level);
+                            }
+                            Drawn::Group { node, fraction, .. } => {
+                                let Some(g) =
+                                    impostors.nodes.get(node as usize).and_then(Option::as_ref)
+                                else {
+                                    continue;
+                                };
+                                if group_lists.len() <= lists_used {
+                                    group_lists.push((g.entity, TreeDrawList::default()));
+                                }
+                                let (entity, list) = &mut group_lists[lists_used];
+                                *entity = g.entity;
+                                lists_used += 1;
+                                let chosen = take(group_search(node as usize, fraction, list));
+                                used += chosen.cost;
+                                truncated += u32::from(chosen.truncated);
+                            }
+                        }
                     }
+                    group_lists.truncate(lists_used);
+                    groups_drawn = outcome.groups_drawn;
+                    cut_benefit = Some(outcome.solved.benefit as f32);
+                    // Not even the coarsest cut fitted: it is the floor, and its overrun
+                    // the one no choice could avoid.
+                    let floor = if outcome.scene_dropped { used } else { 0.0 };
+                    BudgetStats {
+                        rendering_time: rendering,
+                        given: used,
+                        used,
+                        wasted: (rendering - used).max(0.0),
+                        overrun: (used - rendering).max(0.0),
+                        drawn: frame.hierarchical.drawn.len() as u32,
+                        dropped: 0,
+                        truncated,
+                        floor,
+                        floor_excess: (floor - rendering).max(0.0),
+                    }
+                } else {
+                    frame.problem.clear();
+                    frame.rung_times.clear();
+                    frame.next_previous.clear();
+                    for (i, &object) in objects.iter().enumerate() {
+                        let (ladder, times) = ladder_of(i);
+                        let key = (entity_of(object), object.part);
+                        let previous = frame
+                            .previous
+                            .get(&key)
+                            .map_or(PreviousSelection::New, |&l| PreviousSelection::Level(l));
+                        let desc = ObjectDesc {
+                            value: values[i],
+                            complexity: frame.complexities[i],
+                            previous,
+                        };
+                        if frame.problem.push_object(desc, &ladder).is_err() {
+                            // Not expected: values and costs are finite by construction. Keep
+                            // the indices aligned with a free, worthless object.
+                            let _ = frame
+                                .problem
+                                .push_object(ObjectDesc::default(), &[Level::new(0.0, 0.0)]);
+                        }
+                        frame.rung_times.push(times);
+                    }
+                    let strategy: &mut dyn BudgetStrategy = match budget.strategy {
+                        StrategyKind::FunkhouserSequin => &mut frame.funkhouser,
+                        StrategyKind::FunkhouserIncremental => &mut frame.incremental,
+                        _ => &mut frame.triangle_budget,
+                    };
+                    let stats =
+                        strategy.distribute(&frame.problem, rendering, &mut frame.allocations);
+                    for (i, allocation) in frame.allocations.iter().enumerate() {
+                        let object = objects[i];
+                        if let Some(level) = allocation.level {
+                            let time = frame.rung_times[i][level as usize];
+                            take(draw(i, time).0);
+                            frame
+                                .next_previous
+                                .insert((entity_of(object), object.part), level);
+                        }
+                    }
+                    core::mem::swap(&mut frame.previous, &mut frame.next_previous);
+                    stats
                 }
-                core::mem::swap(&mut frame.previous, &mut frame.next_previous);
-                stats
             };
             if report.enabled {
                 let report_start = Instant::now();
                 let full: Vec<f32> = (0..objects.len())
                     .map(|i| search(i, FULL_DETAIL_TIME, scratch).cost)
                     .collect();
-                benefit = frame
-                    .allocations
-                    .iter()
-                    .zip(&frame.values)
-                    .zip(&full)
-                    .map(|((a, &value), &full)| {
-                        let used = if a.level.is_some() { a.used } else { 0.0 };
-                        oracle::sqrt_benefit(value, full, used)
-                    })
-                    .sum::<f64>() as f32;
+                benefit = cut_benefit.unwrap_or_else(|| {
+                    frame
+                        .allocations
+                        .iter()
+                        .zip(&frame.values)
+                        .zip(&full)
+                        .map(|((a, &value), &full)| {
+                            let used = if a.level.is_some() { a.used } else { 0.0 };
+                            oracle::sqrt_benefit(value, full, used)
+                        })
+                        .sum::<f64>() as f32
+                });
                 let pairs: Vec<(f32, f32)> = frame
                     .values
                     .iter()
@@ -406,6 +571,11 @@ pub(super) fn hand_out_time(
         counts,
         truncated,
         undrawn,
+        groups_drawn,
+        trees_drawn: frame.lists[..frame.trees.len()]
+            .iter()
+            .filter(|list| !list.is_empty())
+            .count() as u32,
         benefit,
         benefit_bound,
         value_stage_ms: frame.value_ms,
@@ -413,6 +583,16 @@ pub(super) fn hand_out_time(
         select_stage_ms: 0.0,
         target_below_logic,
     };
+}
+
+/// The ladders' benefit model: the share of an object's value a representation costing
+/// `cost` gives, against `full`, the cost of its full detail.
+fn accuracy(cost: f32, full: f32) -> f32 {
+    if full > 0.0 {
+        (cost / full).min(1.0).sqrt()
+    } else {
+        1.0
+    }
 }
 
 /// What [`tree_leaves`] draws with no time: the cost of the leaves' cheapest
@@ -473,6 +653,18 @@ pub(super) fn write_draw_lists(
             next += 1;
         } else if !list.is_empty() {
             list.clear();
+        }
+    }
+    // Group impostors: last frame's cleared, this frame's cut swapped in.
+    for entity in frame.groups_shown.drain(..) {
+        if let Ok(mut list) = lists.get_mut(entity) {
+            list.clear();
+        }
+    }
+    for (entity, chosen) in &mut frame.group_lists {
+        if let Ok(mut list) = lists.get_mut(*entity) {
+            core::mem::swap(&mut *list, chosen);
+            frame.groups_shown.push(*entity);
         }
     }
     diagnostics.select_stage_ms = start.elapsed().as_secs_f32() * 1000.0;

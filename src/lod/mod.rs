@@ -29,14 +29,19 @@
 //! it ([`CostModel::record`](crate::cost::CostModel::record)) so that it learns from what that frame then measured.
 
 mod diagnostics;
+mod groups;
 mod hand_out;
+mod hierarchical;
 pub mod select;
 mod settings;
 mod value;
 
 pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
+pub use groups::{GroupImpostorOf, GroupImpostors};
+pub use hierarchical::HierarchicalCut;
 pub use settings::{
-    BenefitReport, FrameBudget, LADDER_FRACTIONS, LodMode, StrategyKind, TARGET_WARNING_SECS,
+    BenefitReport, FrameBudget, GroupSettings, LADDER_FRACTIONS, LodMode, StrategyKind,
+    TARGET_WARNING_SECS,
 };
 pub use value::UNIFORM_DEPTH_RADII;
 
@@ -50,6 +55,7 @@ use crate::draw::TreeDrawList;
 use crate::schedule::SherwoodSystems;
 use crate::tree::TreeModelsVersion;
 
+use groups::build_group_impostors;
 use hand_out::{hand_out_time, write_draw_lists};
 use select::VisibleGroup;
 use value::{ModelInfo, Object, PlacedTree, VisibleTree, give_draw_lists, value_objects};
@@ -72,6 +78,10 @@ impl Plugin for LodPlugin {
         app.register_type::<FrameBudget>()
             .register_type::<LodDiagnostics>()
             .register_type::<BenefitReport>()
+            .register_type::<GroupSettings>()
+            .init_resource::<GroupSettings>()
+            .init_resource::<GroupImpostors>()
+            .init_resource::<HierarchicalCut>()
             .init_resource::<FrameBudget>()
             .init_resource::<BenefitReport>()
             .init_resource::<TreeModelsVersion>()
@@ -81,7 +91,7 @@ impl Plugin for LodPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    (give_draw_lists, value_objects)
+                    (give_draw_lists, build_group_impostors, value_objects)
                         .chain()
                         .in_set(SherwoodSystems::Value),
                     hand_out_time.in_set(SherwoodSystems::Budget),
@@ -154,6 +164,13 @@ pub(super) struct LodFrame {
     previous: HashMap<(Entity, value::Part), u32>,
     next_previous: HashMap<(Entity, value::Part), u32>,
     scratch: TreeDrawList,
+    /// The view of this frame (the Value stage's), for the group impostors' searches.
+    view: Option<crate::view::LodView>,
+    /// The hierarchical strategy's state and this frame's group impostor lists.
+    hierarchical: hierarchical::HierarchicalFrame,
+    group_lists: Vec<(Entity, TreeDrawList)>,
+    /// The group impostors whose lists were written last frame.
+    groups_shown: Vec<Entity>,
     /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
     /// when models change.
     infos: Vec<ModelInfo>,

@@ -60,6 +60,20 @@ pub struct Selected {
     pub full: bool,
 }
 
+impl Selected {
+    /// Two parts drawn together (a tree's trunk and leaves).
+    pub fn both(a: Self, b: Self) -> Self {
+        Self {
+            cost: a.cost + b.cost,
+            lines: a.lines + b.lines,
+            points: a.points + b.points,
+            meshes: a.meshes + b.meshes,
+            truncated: a.truncated || b.truncated,
+            full: a.full && b.full,
+        }
+    }
+}
+
 fn pixels_per_unit(view: &TreeView, depth: f32) -> f32 {
     view.projection.pixels(view.scale, depth)
 }

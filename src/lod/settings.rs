@@ -35,6 +35,12 @@ pub enum StrategyKind {
     FunkhouserIncremental,
     /// The triangle-budget greedy.
     TriangleBudget,
+    /// Mason & Blake's hierarchical optimisation over the culling boxes: a box in view
+    /// may be drawn as one group impostor of all its trees ([`GroupSettings`]) instead of
+    /// its trees, so a view too large for every tree's cheapest representation stays
+    /// complete and on time. Each tree part sees a ladder as with
+    /// [`FunkhouserSequin`](Self::FunkhouserSequin); the choice starts from last frame's.
+    Hierarchical,
 }
 
 /// The frame's budget and how it is spent. Changing it takes effect on the next frame.
@@ -99,6 +105,44 @@ impl Default for FrameBudget {
 pub struct BenefitReport {
     /// Score the hand-out. Default: `false`.
     pub enabled: bool,
+}
+
+/// The group impostors of the [`StrategyKind::Hierarchical`] strategy: one per box of the
+/// culling hierarchy holding enough trees, built from its trees
+/// ([`group_model`](crate::tree::group_model)) the first time the strategy is chosen and
+/// whenever the forest's layout changes (not when trees only move or sway: a group keeps
+/// its trees' places at build time, and does not sway). Changing it rebuilds them.
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Reflect)]
+#[reflect(Resource)]
+#[serde(default)]
+pub struct GroupSettings {
+    /// A box gets a group impostor when it holds at least this many trees. Default: `16`.
+    pub min_trees: u32,
+    /// Leaves a group keeps (one triangle each, enlarged to its trees' leaf area).
+    /// Default: `256`.
+    pub leaves: u32,
+    /// Trees whose stem and leaves a group keeps, at most. Default: `32`.
+    pub trunks: u32,
+}
+
+impl Default for GroupSettings {
+    fn default() -> Self {
+        Self {
+            min_trees: 16,
+            leaves: 256,
+            trunks: 32,
+        }
+    }
+}
+
+impl GroupSettings {
+    /// The group-model options these settings ask for.
+    pub fn model_options(&self) -> crate::tree::GroupModelOptions {
+        crate::tree::GroupModelOptions {
+            leaves: self.leaves,
+            trunks: self.trunks,
+        }
+    }
 }
 
 /// The fractions of an object's full-detail time at which its ladder's rungs are searched

@@ -39,6 +39,8 @@ pub(super) struct Object {
 /// One visible tree this frame.
 pub(super) struct VisibleTree {
     pub(super) entity: Entity,
+    /// Its index in the instance table.
+    pub(super) instance: u32,
     /// Index into [`LodFrame::infos`].
     pub(super) model: u32,
     pub(super) view: TreeView,
@@ -117,11 +119,17 @@ pub(super) struct PlacedTree {
 pub(super) const NO_MODEL: u32 = u32::MAX;
 
 fn place_trees(table: &ForestInstances, infos: &[ModelInfo]) -> Vec<PlacedTree> {
+    // (Group impostors add thousands of models: look them up, not search them.)
+    let index: HashMap<AssetId<TreeModel>, usize> = infos
+        .iter()
+        .enumerate()
+        .map(|(m, info)| (info.id, m))
+        .collect();
     (0..table.len())
         .map(|i| {
             let transform = table.transforms[i];
             let id = table.model_id(i);
-            let model = id.and_then(|id| infos.iter().position(|info| info.id == id));
+            let model = id.and_then(|id| index.get(&id).copied());
             let (center, trunk_center) = model.map_or((Vec3::ZERO, Vec3::ZERO), |m| {
                 (
                     transform.transform_point3(infos[m].center),
@@ -204,10 +212,12 @@ pub(super) fn value_objects(
     frame.objects.clear();
     frame.values.clear();
     frame.complexities.clear();
+    frame.view = None;
     let Some((view, cull_view)) = views.iter().next() else {
         return;
     };
     frame.viewport_pixels = view.viewport_pixels;
+    frame.view = Some(*view);
     if let Some(culling) = culling {
         value_trees(
             frame,
@@ -369,6 +379,7 @@ fn value_trees(
         }
         trees.push(VisibleTree {
             entity,
+            instance: i as u32,
             model: model_index,
             view: TreeView {
                 scale,

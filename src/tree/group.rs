@@ -247,7 +247,10 @@ mod tests {
         let group = group_model(&members, &options).unwrap();
         group.validate().unwrap();
         // One stem per kept tree, each its own root.
-        let roots: Vec<Vec3> = group.roots().map(|r| group.rings[r as usize].center).collect();
+        let roots: Vec<Vec3> = group
+            .roots()
+            .map(|r| group.rings[r as usize].center)
+            .collect();
         assert_eq!(roots.len(), 16, "{roots:?} rings {}", group.rings.len());
         assert!(group.leaf_triangle_count() <= 128);
         assert!(group.leaf_triangle_count() >= 16);

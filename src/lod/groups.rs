@@ -1,0 +1,193 @@
+//! The group impostors of the hierarchical strategy: one [`TreeModel`] per box of the
+//! culling hierarchy that holds enough trees, spawned as a tree entity the LOD stages
+//! write a draw list into (empty while its trees are drawn on their own).
+
+use std::time::Instant;
+
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+
+use super::{FrameBudget, GroupSettings, StrategyKind};
+use crate::culling::ForestCulling;
+use crate::draw::{TreeDrawList, TreeShading};
+use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
+use crate::tree::{GroupMember, TreeModel, group_model};
+
+/// Marks the entity of a group impostor: it stands for the trees under box `node` of the
+/// culling hierarchy. It is a [`TreeInstance`] with [`FixedDrawList`], outside the
+/// instance table; the Budget stage writes its [`TreeDrawList`].
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GroupImpostorOf {
+    /// The box, an index into the hierarchy's nodes.
+    pub node: u32,
+}
+
+/// One box's group impostor.
+#[derive(Clone, Debug)]
+pub(crate) struct GroupImpostor {
+    pub(crate) entity: Entity,
+    pub(crate) model: Handle<TreeModel>,
+    /// Where the model's origin stands (world space).
+    pub(crate) origin: Vec3,
+}
+
+/// The group impostors of the culling hierarchy's boxes, built by the LOD plugin while
+/// the strategy is [`StrategyKind::Hierarchical`].
+#[derive(Resource, Default)]
+pub struct GroupImpostors {
+    /// Per box of the hierarchy, its impostor.
+    pub(crate) nodes: Vec<Option<GroupImpostor>>,
+    /// `(instance layout, hierarchy depth, settings)` they were built for.
+    built: Option<(u64, u32, GroupSettings)>,
+    build_ms: f32,
+    failed: u32,
+}
+
+impl GroupImpostors {
+    /// How many boxes have a group impostor.
+    pub fn len(&self) -> usize {
+        self.nodes.iter().flatten().count()
+    }
+
+    /// Whether none has.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// How long the last build took, in milliseconds (models analysed and spawned).
+    pub fn build_ms(&self) -> f32 {
+        self.build_ms
+    }
+
+    /// Boxes whose group could not be built at the last build (warned about; their trees
+    /// are always drawn on their own).
+    pub fn failed(&self) -> u32 {
+        self.failed
+    }
+
+    /// Whether they are built for the hierarchy the culling holds now.
+    pub(crate) fn current(&self, layout: Option<u64>, depth: u32) -> bool {
+        matches!((self.built, layout), (Some((l, d, _)), Some(now)) if l == now && d == depth)
+    }
+}
+
+/// Builds (or rebuilds) the group impostors once the hierarchical strategy is chosen, the
+/// culling hierarchy is built for the current layout and every tree model has loaded.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "a system names every resource it reads"
+)]
+pub(super) fn build_group_impostors(
+    mut commands: Commands,
+    budget: Res<FrameBudget>,
+    settings: Res<GroupSettings>,
+    culling: Option<Res<ForestCulling>>,
+    table: Res<ForestInstances>,
+    mut models: ResMut<Assets<TreeModel>>,
+    shadings: Query<&TreeShading>,
+    mut groups: ResMut<GroupImpostors>,
+) {
+    if budget.strategy != StrategyKind::Hierarchical {
+        return;
+    }
+    let Some(culling) = culling else {
+        return;
+    };
+    let Some(hierarchy) = culling.hierarchy.as_ref() else {
+        return;
+    };
+    let layout = table.layout_version();
+    if culling.layout_version() != Some(layout) || culling.models_loading() > 0 {
+        return;
+    }
+    let key = (layout, hierarchy.depth(), *settings);
+    if groups.built == Some(key) {
+        return;
+    }
+    let start = Instant::now();
+    for old in groups.nodes.drain(..).flatten() {
+        commands.entity(old.entity).try_despawn();
+        models.remove(&old.model);
+    }
+    let mut far_first: HashMap<AssetId<TreeModel>, Vec<u32>> = HashMap::default();
+    for id in &table.model_ids {
+        if let Some(model) = models.get(*id) {
+            far_first.insert(*id, model.far_first_leaves());
+        }
+    }
+    let options = settings.model_options();
+    let mut built = Vec::with_capacity(hierarchy.node_count());
+    let mut failed = 0;
+    for node in 0..hierarchy.node_count() {
+        let trees = hierarchy.node_instances(node);
+        let bounds = hierarchy.node_bounds(node);
+        if trees.len() < settings.min_trees.max(1) as usize || bounds.is_empty() {
+            built.push(None);
+            continue;
+        }
+        let origin = Vec3::new(bounds.center().x, bounds.min.y, bounds.center().z);
+        let members: Vec<GroupMember> = trees
+            .iter()
+            .filter_map(|&i| {
+                let id = table.model_id(i as usize)?;
+                let mut transform = *table.transforms.get(i as usize)?;
+                transform.translation -= Vec3A::from(origin);
+                Some(GroupMember {
+                    model: models.get(id)?,
+                    transform,
+                    far_first: far_first.get(&id)?,
+                })
+            })
+            .collect();
+        match group_model(&members, &options) {
+            Ok(model) => built.push(Some((node, origin, model, trees[0]))),
+            Err(error) => {
+                warn!(
+                    "group impostor of culling box {node} ({} trees): {error}",
+                    trees.len()
+                );
+                failed += 1;
+                built.push(None);
+            }
+        }
+    }
+    for entry in built {
+        let Some((node, origin, model, first_tree)) = entry else {
+            groups.nodes.push(None);
+            continue;
+        };
+        let shading = table
+            .entities
+            .get(first_tree as usize)
+            .and_then(|&e| shadings.get(e).ok())
+            .copied()
+            .unwrap_or_else(|| TreeShading::of_model(&model));
+        let handle = models.add(model);
+        let entity = commands
+            .spawn((
+                Name::new(format!("group impostor {node}")),
+                TreeInstance::new(handle.clone()),
+                FixedDrawList,
+                TreeDrawList::default(),
+                shading,
+                GroupImpostorOf { node: node as u32 },
+                Transform::from_translation(origin),
+                // Drawn from this frame on, before transforms propagate again.
+                GlobalTransform::from_translation(origin),
+            ))
+            .id();
+        groups.nodes.push(Some(GroupImpostor {
+            entity,
+            model: handle,
+            origin,
+        }));
+    }
+    groups.built = Some(key);
+    groups.failed = failed;
+    groups.build_ms = start.elapsed().as_secs_f32() * 1000.0;
+    info!(
+        "built {} group impostors in {:.0} ms",
+        groups.len(),
+        groups.build_ms
+    );
+}

@@ -1,0 +1,395 @@
+//! The hierarchical strategy's frame: the visible part of the culling box hierarchy as a
+//! Mason–Blake [`LodHierarchy`] — boxes with group impostors over trees over their trunk
+//! and leaves — solved from last frame's cut, and the cut read back as what to draw.
+
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+
+use super::value::{Object, Part, VisibleTree};
+use super::{LADDER_FRACTIONS, LadderEntry};
+use crate::budget::{
+    HierarchicalLod, HierarchyOutcome, Level, LodHierarchy, NodeId, NodeSelection,
+};
+use crate::culling::{BoxHierarchy, NodeVisibility};
+
+/// A rung ladder: each representation's cost and benefit, best → cheapest, and the time
+/// its search is given (for a group: the fraction of its full detail).
+pub(super) type Ladder = (
+    [Level; LADDER_FRACTIONS.len()],
+    [f32; LADDER_FRACTIONS.len()],
+);
+
+/// Who a node of this frame's hierarchy is, across frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Key {
+    /// A box of the culling hierarchy.
+    Box(u32),
+    /// A tree, as the group of its trunk and leaves.
+    Tree(Entity),
+    /// One object of the hand-out.
+    Object(Entity, Part),
+}
+
+/// What a node of this frame's hierarchy stands for.
+#[derive(Clone, Copy, Debug)]
+enum What {
+    /// Object `i` of the hand-out.
+    Object(u32),
+    /// A tree's two objects.
+    Tree,
+    /// A culling box (with or without a group impostor).
+    Box(u32),
+}
+
+/// One representation the cut draws.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Drawn {
+    /// Object `object` at rung `level`, its search given `time`.
+    Object {
+        /// Index into the frame's objects.
+        object: u32,
+        /// Rung of its ladder.
+        level: u32,
+        /// Time its search is given.
+        time: f32,
+    },
+    /// The group impostor of box `node`, at `fraction` of its full detail.
+    Group {
+        /// The box.
+        node: u32,
+        /// Rung of its ladder.
+        level: u32,
+        /// Fraction of its full detail.
+        fraction: f32,
+    },
+}
+
+/// The last frame's cut of the [`StrategyKind::Hierarchical`](super::StrategyKind::Hierarchical)
+/// strategy, as the solver saw it: for inspection and tests (for example re-solving
+/// `hierarchy` from `seed` with a fresh [`HierarchicalLod`] gives `selection`).
+#[derive(Resource, Default, Debug)]
+pub struct HierarchicalCut {
+    /// The frame's hierarchy: visible boxes (with their group impostors' ladders) over
+    /// visible trees over their trunk and leaves objects (each with its ladder).
+    pub hierarchy: LodHierarchy,
+    /// Where the solve started: last frame's selection carried over by node identity.
+    pub seed: Vec<NodeSelection>,
+    /// The rendering time it was solved for, seconds.
+    pub rendering: f32,
+    /// How each node ended up represented.
+    pub selection: Vec<NodeSelection>,
+    /// Not even the coarsest cut fitted the rendering time: the solver left the scene to
+    /// its imaginary empty item, and the coarsest cut (every top-level box's cheapest
+    /// group impostor, or its children's) was drawn instead, overrunning.
+    pub coarsest_forced: bool,
+}
+
+/// The hierarchical strategy's state, kept between frames.
+#[derive(Default)]
+pub(super) struct HierarchicalFrame {
+    lod: HierarchicalLod,
+    hierarchy: LodHierarchy,
+    keys: Vec<Key>,
+    what: Vec<What>,
+    times: Vec<[f32; LADDER_FRACTIONS.len()]>,
+    /// Last frame's selection by node identity.
+    previous: HashMap<Key, NodeSelection>,
+    seed: Vec<NodeSelection>,
+    /// Per instance of the table, its visible tree (or `u32::MAX`).
+    tree_of_instance: Vec<u32>,
+    /// Per visible tree, its trunk and leaves objects (or `u32::MAX`).
+    tree_objects: Vec<[u32; 2]>,
+    /// This frame's cut.
+    pub(super) drawn: Vec<Drawn>,
+}
+
+const NONE: u32 = u32::MAX;
+
+/// What one frame's solve did.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct CutOutcome {
+    /// The solver's totals (for the coarsest cut when nothing fitted).
+    pub(super) solved: HierarchyOutcome,
+    /// Group impostors in the cut.
+    pub(super) groups_drawn: u32,
+    /// Not even the coarsest cut fitted: the solver left the scene empty and the coarsest
+    /// cut is drawn instead.
+    pub(super) scene_dropped: bool,
+}
+
+/// What one frame of the strategy needs from the stage.
+pub(super) struct HierarchyInputs<'a> {
+    pub(super) boxes: Option<&'a BoxHierarchy>,
+    pub(super) instances: usize,
+    pub(super) trees: &'a [VisibleTree],
+    pub(super) objects: &'a [Object],
+    pub(super) values: &'a [f32],
+    pub(super) ladders: &'a [LadderEntry],
+    pub(super) rendering: f32,
+}
+
+impl HierarchicalFrame {
+    /// Builds this frame's hierarchy, solves it from last frame's cut and leaves the cut
+    /// in [`drawn`](Self::drawn). `ladder(i)` is object `i`'s ladder; `group_ladder(node,
+    /// value, full)` the group impostor's of box `node` (`None` without one), given its
+    /// visible trees' summed value and full-detail cost.
+    pub(super) fn solve(
+        &mut self,
+        inputs: &HierarchyInputs,
+        ladder: &mut dyn FnMut(usize) -> Ladder,
+        group_ladder: &mut dyn FnMut(usize, f32, f32) -> Option<Ladder>,
+        cut: &mut HierarchicalCut,
+    ) -> CutOutcome {
+        self.hierarchy = LodHierarchy::new();
+        self.keys.clear();
+        self.what.clear();
+        self.times.clear();
+        self.tree_of_instance.clear();
+        self.tree_of_instance.resize(inputs.instances, NONE);
+        for (t, tree) in inputs.trees.iter().enumerate() {
+            if let Some(slot) = self.tree_of_instance.get_mut(tree.instance as usize) {
+                *slot = t as u32;
+            }
+        }
+        self.tree_objects.clear();
+        self.tree_objects.resize(inputs.trees.len(), [NONE; 2]);
+        let mut loose = Vec::new();
+        for (i, object) in inputs.objects.iter().enumerate() {
+            match object.part {
+                Part::Trunk => self.tree_objects[object.index as usize][0] = i as u32,
+                Part::Leaves => self.tree_objects[object.index as usize][1] = i as u32,
+                Part::Ladder => loose.push(i),
+            }
+        }
+        let mut built = Builder {
+            frame: self,
+            inputs,
+            ladder,
+            group_ladder,
+        };
+        if let Some(boxes) = inputs.boxes {
+            built.add_box(boxes, 0, false);
+        } else {
+            for t in 0..inputs.trees.len() {
+                built.add_tree(t);
+            }
+        }
+        for i in loose {
+            built.add_object(i);
+        }
+
+        self.seed.clear();
+        self.seed.extend(self.keys.iter().map(|key| {
+            self.previous
+                .get(key)
+                .copied()
+                .unwrap_or(NodeSelection::Hidden)
+        }));
+        let mut outcome = self
+            .lod
+            .solve_from(&self.hierarchy, inputs.rendering, &self.seed);
+
+        // The cut, and the selection to start from next frame.
+        self.previous.clear();
+        self.drawn.clear();
+        let scene_dropped = self
+            .hierarchy
+            .top_level()
+            .any(|n| self.lod.selection(n) == NodeSelection::Hidden);
+        if scene_dropped {
+            // Nothing fitted, not even the coarsest cut: the scene was left to Mason &
+            // Blake's imaginary empty item. Nothing visible is dropped here: draw the
+            // coarsest cut, overrunning.
+            let top: Vec<NodeId> = self.hierarchy.top_level().collect();
+            outcome.cost = 0.0;
+            outcome.benefit = 0.0;
+            for node in top {
+                self.coarsest(node, &mut outcome);
+            }
+        } else {
+            for node in 0..self.hierarchy.len() as NodeId {
+                let selection = self.lod.selection(node);
+                self.previous.insert(self.keys[node as usize], selection);
+                if let NodeSelection::Impostor(level) = selection {
+                    self.draw(node, level);
+                }
+            }
+        }
+        cut.selection.clear();
+        cut.selection
+            .extend((0..self.hierarchy.len() as NodeId).map(|n| self.lod.selection(n)));
+        if scene_dropped {
+            for (node, selection) in cut.selection.iter_mut().enumerate() {
+                if let Some(&chosen) = self.previous.get(&self.keys[node]) {
+                    *selection = chosen;
+                }
+            }
+        }
+        cut.rendering = inputs.rendering;
+        cut.coarsest_forced = scene_dropped;
+        core::mem::swap(&mut cut.hierarchy, &mut self.hierarchy);
+        core::mem::swap(&mut cut.seed, &mut self.seed);
+        CutOutcome {
+            groups_drawn: self
+                .drawn
+                .iter()
+                .filter(|d| matches!(d, Drawn::Group { .. }))
+                .count() as u32,
+            solved: outcome,
+            scene_dropped,
+        }
+    }
+
+    /// Draws `node`'s subtree at its coarsest: its cheapest impostor, or its children's.
+    fn coarsest(&mut self, node: NodeId, outcome: &mut HierarchyOutcome) {
+        let impostors = self.hierarchy.impostors(node);
+        if let Some(cheapest) = impostors.last() {
+            outcome.cost += f64::from(cheapest.cost);
+            outcome.benefit += f64::from(cheapest.benefit);
+            let level = impostors.len() as u32 - 1;
+            self.previous
+                .insert(self.keys[node as usize], NodeSelection::Impostor(level));
+            self.draw(node, level);
+        } else {
+            self.previous
+                .insert(self.keys[node as usize], NodeSelection::Children);
+            let children = self.hierarchy.children(node).to_vec();
+            for child in children {
+                self.coarsest(child, outcome);
+            }
+        }
+    }
+
+    fn draw(&mut self, node: NodeId, level: u32) {
+        let time = self.times[node as usize][level as usize];
+        match self.what[node as usize] {
+            What::Object(object) => self.drawn.push(Drawn::Object {
+                object,
+                level,
+                time,
+            }),
+            What::Box(b) => {
+                self.drawn.push(Drawn::Group {
+                    node: b,
+                    level,
+                    fraction: time,
+                });
+            }
+            What::Tree => {}
+        }
+    }
+}
+
+struct Builder<'f, 'i, 'a, 'l> {
+    frame: &'f mut HierarchicalFrame,
+    inputs: &'i HierarchyInputs<'a>,
+    ladder: &'l mut dyn FnMut(usize) -> Ladder,
+    group_ladder: &'l mut dyn FnMut(usize, f32, f32) -> Option<Ladder>,
+}
+
+/// A node added: its id, its visible trees' summed value and full-detail cost.
+type Added = (NodeId, f32, f32);
+
+impl Builder<'_, '_, '_, '_> {
+    fn push(&mut self, key: Key, what: What, times: [f32; LADDER_FRACTIONS.len()]) {
+        self.frame.keys.push(key);
+        self.frame.what.push(what);
+        self.frame.times.push(times);
+    }
+
+    fn add_object(&mut self, i: usize) -> Option<Added> {
+        let (levels, times) = (self.ladder)(i);
+        let node = self.frame.hierarchy.add_object(&levels).ok()?;
+        let object = self.inputs.objects[i];
+        let entity = match object.part {
+            Part::Ladder => self.inputs.ladders[object.index as usize].entity,
+            _ => self.inputs.trees[object.index as usize].entity,
+        };
+        self.push(
+            Key::Object(entity, object.part),
+            What::Object(i as u32),
+            times,
+        );
+        Some((node, self.inputs.values[i], levels[0].cost))
+    }
+
+    fn add_tree(&mut self, t: usize) -> Option<Added> {
+        let [trunk, leaves] = self.frame.tree_objects[t];
+        let parts: Vec<Added> = [trunk, leaves]
+            .into_iter()
+            .filter(|&o| o != NONE)
+            .filter_map(|o| self.add_object(o as usize))
+            .collect();
+        self.group(
+            Key::Tree(self.inputs.trees[t].entity),
+            What::Tree,
+            &parts,
+            None,
+        )
+    }
+
+    /// A group over `children`; one child without impostors of its own is that child.
+    fn group(
+        &mut self,
+        key: Key,
+        what: What,
+        children: &[Added],
+        impostors: Option<Ladder>,
+    ) -> Option<Added> {
+        let value = children.iter().map(|c| c.1).sum();
+        let full = children.iter().map(|c| c.2).sum();
+        if impostors.is_none() && children.len() <= 1 {
+            return children.first().copied();
+        }
+        let ids: Vec<NodeId> = children.iter().map(|c| c.0).collect();
+        let (levels, times) = impostors.map_or(([Level::new(0.0, 0.0); 7], [0.0; 7]), |l| l);
+        let levels = if impostors.is_some() {
+            &levels[..]
+        } else {
+            &[]
+        };
+        let node = self.frame.hierarchy.add_group(&ids, levels).ok()?;
+        self.push(key, what, times);
+        Some((node, value, full))
+    }
+
+    fn add_box(&mut self, boxes: &BoxHierarchy, node: usize, inside: bool) -> Option<Added> {
+        if boxes.node_bounds(node).is_empty() {
+            return None;
+        }
+        let inside = inside
+            || match boxes.node_visibility(node) {
+                NodeVisibility::Full => true,
+                NodeVisibility::Partial => false,
+                NodeVisibility::Outside | NodeVisibility::Untested => return None,
+            };
+        let children: Vec<Added> = match boxes.children(node) {
+            Some(range) => range
+                .filter_map(|child| self.add_box(boxes, child, inside))
+                .collect(),
+            None => boxes
+                .node_instances(node)
+                .iter()
+                .filter_map(|&i| {
+                    let t = *self.frame.tree_of_instance.get(i as usize)?;
+                    (t != NONE).then_some(t as usize)
+                })
+                .collect::<Vec<_>>()
+                .into_iter()
+                .filter_map(|t| self.add_tree(t))
+                .collect(),
+        };
+        if children.is_empty() {
+            return None;
+        }
+        let value = children.iter().map(|c| c.1).sum();
+        let full = children.iter().map(|c| c.2).sum();
+        let impostors = (self.group_ladder)(node, value, full);
+        self.group(
+            Key::Box(node as u32),
+            What::Box(node as u32),
+            &children,
+            impostors,
+        )
+    }
+}

@@ -1,0 +1,172 @@
+//! The hierarchical strategy (Mason–Blake over the culling boxes, with group impostors)
+//! in a headless app: the default forest against a fixed view.
+
+mod common;
+
+use bevy::prelude::*;
+use bevy_sherwood::budget::{HierarchicalLod, NodeSelection};
+use bevy_sherwood::culling::ForestCulling;
+use bevy_sherwood::draw::TreeDrawList;
+use bevy_sherwood::lod::{GroupImpostorOf, GroupImpostors, HierarchicalCut, StrategyKind};
+use bevy_sherwood::prelude::*;
+
+const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
+const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);
+
+fn hierarchical(target_ms: f32) -> FrameBudget {
+    FrameBudget {
+        strategy: StrategyKind::Hierarchical,
+        target_ms,
+        ..Default::default()
+    }
+}
+
+fn frame(app: &mut App, budget: FrameBudget) -> LodDiagnostics {
+    *app.world_mut().resource_mut::<FrameBudget>() = budget;
+    app.update();
+    app.world().resource::<LodDiagnostics>().clone()
+}
+
+/// The app with its group impostors built and drawn once.
+fn app() -> App {
+    let mut app = common::default_forest_view(EYE, LOOK_AT, |_| {});
+    for _ in 0..3 {
+        frame(&mut app, hierarchical(100.0));
+    }
+    assert!(
+        !app.world().resource::<GroupImpostors>().is_empty(),
+        "the default forest's upper boxes hold enough trees for groups"
+    );
+    app
+}
+
+/// Per instance of the table: culled visible, drawn on its own, drawn by a group.
+fn coverage(app: &mut App) -> Vec<(bool, bool, bool)> {
+    let world = app.world_mut();
+    let table = world.resource::<ForestInstances>().entities.clone();
+    let mut by_group = vec![false; table.len()];
+    let mut groups = world.query::<(&GroupImpostorOf, &TreeDrawList)>();
+    let drawn_groups: Vec<u32> = groups
+        .iter(world)
+        .filter(|(_, list)| !list.is_empty())
+        .map(|(g, _)| g.node)
+        .collect();
+    let culling = world.resource::<ForestCulling>();
+    let boxes = culling.hierarchy.as_ref().unwrap();
+    for node in drawn_groups {
+        for &i in boxes.node_instances(node as usize) {
+            by_group[i as usize] = true;
+        }
+    }
+    let visible: Vec<bool> = (0..table.len())
+        .map(|i| culling.result.visibility[i] != Default::default())
+        .collect();
+    table
+        .iter()
+        .enumerate()
+        .map(|(i, &e)| {
+            let own = world.get::<TreeDrawList>(e).is_some_and(|l| !l.is_empty());
+            (visible[i], own, by_group[i])
+        })
+        .collect()
+}
+
+#[test]
+fn no_visible_tree_is_left_unrepresented() {
+    let mut app = app();
+    let mut saw_groups = false;
+    // Down and back up again: the cut starts from last frame's either way.
+    for target in [5000.0, 200.0, 40.0, 10.0, 2.0, 0.5, 2.0, 10.0, 40.0, 5000.0] {
+        let d = frame(&mut app, hierarchical(target));
+        assert_eq!(d.undrawn, 0, "at {target} ms: {d:?}");
+        assert!(d.visible_instances > 20);
+        for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
+            if visible {
+                assert!(
+                    own || by_group,
+                    "at {target} ms visible instance {i} is drawn neither on its own nor by a group"
+                );
+            }
+            // Exactly one representation: never a tree and a group over it.
+            assert!(
+                !(own && by_group),
+                "at {target} ms instance {i} is drawn twice"
+            );
+        }
+        saw_groups |= d.groups_drawn > 0;
+        assert!(
+            d.trees_drawn + d.groups_drawn > 0,
+            "nothing drawn at {target} ms"
+        );
+        if target >= 5000.0 {
+            assert_eq!(d.groups_drawn, 0, "time to spare opens every group: {d:?}");
+            assert_eq!(d.trees_drawn, d.visible_instances);
+        }
+    }
+    assert!(saw_groups, "tight targets draw group impostors");
+}
+
+#[test]
+fn the_cut_fits_whenever_the_coarsest_cut_fits() {
+    let mut app = app();
+    for target in [5000.0, 100.0, 30.0, 10.0, 3.0, 1.0, 0.3] {
+        let d = frame(&mut app, hierarchical(target));
+        let selection = d.predicted_render_ms - d.render_fixed_ms;
+        let cut = app.world().resource::<HierarchicalCut>();
+        if cut.coarsest_forced {
+            // Only when even the coarsest cut (here the root box's cheapest group
+            // impostor: the whole forest as one object) does not fit.
+            assert!(d.floor_excess_ms > 0.0, "at {target} ms: {d:?}");
+            assert!(selection > d.render_budget_ms, "at {target} ms: {d:?}");
+            assert_eq!(d.groups_drawn, 1, "at {target} ms: {d:?}");
+            assert_eq!(d.trees_drawn, 0, "at {target} ms: {d:?}");
+        } else {
+            assert!(
+                selection <= d.render_budget_ms * 1.0001 + 1e-6,
+                "at {target} ms the cut overspends: {d:?}"
+            );
+            assert_eq!(d.floor_excess_ms, 0.0);
+        }
+    }
+}
+
+#[test]
+fn the_app_draws_what_the_pure_solver_chooses() {
+    let mut app = app();
+    for target in [200.0, 40.0, 8.0, 40.0] {
+        let d = frame(&mut app, hierarchical(target));
+        let cut = app.world().resource::<HierarchicalCut>();
+        if cut.coarsest_forced {
+            continue;
+        }
+        // The same hierarchy from the same start, solved by the pure optimiser.
+        let mut solver = HierarchicalLod::new();
+        solver.solve_from(&cut.hierarchy, cut.rendering, &cut.seed);
+        let mut predicted = 0.0f64;
+        let mut groups = 0;
+        let mut objects = 0;
+        for node in 0..cut.hierarchy.len() as u32 {
+            let selection = solver.selection(node);
+            assert_eq!(
+                selection, cut.selection[node as usize],
+                "node {node} at {target} ms"
+            );
+            if let NodeSelection::Impostor(level) = selection {
+                predicted += f64::from(cut.hierarchy.impostors(node)[level as usize].cost);
+                if cut.hierarchy.children(node).is_empty() {
+                    objects += 1;
+                } else {
+                    groups += 1;
+                }
+            }
+        }
+        assert_eq!(groups, d.groups_drawn, "at {target} ms");
+        assert!(objects >= d.trees_drawn, "at {target} ms");
+        // What was drawn is what the solver priced (searches are deterministic).
+        let selection = f64::from(d.predicted_render_ms - d.render_fixed_ms) / 1000.0;
+        assert!(
+            (selection - predicted).abs() <= 1e-3 * predicted.max(1e-6),
+            "at {target} ms drawn {selection} s, solver's cut {predicted} s"
+        );
+    }
+}
