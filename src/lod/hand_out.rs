@@ -355,6 +355,7 @@ pub(super) fn hand_out_time(
                         values,
                         ladders: ladder_entries,
                         rendering,
+                        layout: culling.as_deref().and_then(|c| c.layout_version()),
                     };
                     let mut group_scratch = TreeDrawList::default();
                     let mut group_ladder = |node: usize, value: f32, members_full: f32| {

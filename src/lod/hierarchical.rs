@@ -78,6 +78,9 @@ pub struct HierarchicalCut {
     pub rendering: f32,
     /// How each node ended up represented.
     pub selection: Vec<NodeSelection>,
+    /// Per node, the culling box it stands for (`None` for a tree or one of its parts).
+    /// A box without children here was added alone, below last frame's cut.
+    pub boxes: Vec<Option<u32>>,
     /// Not even the coarsest cut fitted the rendering time: the solver left the scene to
     /// its imaginary empty item, and the coarsest cut (every top-level box's cheapest
     /// group impostor, or its children's) was drawn instead, overrunning.
@@ -94,6 +97,11 @@ pub(super) struct HierarchicalFrame {
     times: Vec<[f32; LADDER_FRACTIONS.len()]>,
     /// Last frame's selection by node identity.
     previous: HashMap<Key, NodeSelection>,
+    /// Per box, its visible trees' summed value and full-detail cost when it was last
+    /// added with its trees.
+    box_totals: HashMap<u32, (f32, f32)>,
+    /// The instance layout `previous` and `box_totals` are for.
+    layout: Option<u64>,
     seed: Vec<NodeSelection>,
     /// Per instance of the table, its visible tree (or `u32::MAX`).
     tree_of_instance: Vec<u32>,
@@ -126,6 +134,8 @@ pub(super) struct HierarchyInputs<'a> {
     pub(super) values: &'a [f32],
     pub(super) ladders: &'a [LadderEntry],
     pub(super) rendering: f32,
+    /// The instance layout the boxes index (a new one forgets last frame's cut).
+    pub(super) layout: Option<u64>,
 }
 
 impl HierarchicalFrame {
@@ -144,6 +154,11 @@ impl HierarchicalFrame {
         self.keys.clear();
         self.what.clear();
         self.times.clear();
+        if self.layout != inputs.layout {
+            self.layout = inputs.layout;
+            self.previous.clear();
+            self.box_totals.clear();
+        }
         self.tree_of_instance.clear();
         self.tree_of_instance.resize(inputs.instances, NONE);
         for (t, tree) in inputs.trees.iter().enumerate() {
@@ -168,7 +183,7 @@ impl HierarchicalFrame {
             group_ladder,
         };
         if let Some(boxes) = inputs.boxes {
-            built.add_box(boxes, 0, false);
+            built.add_box(boxes, 0, false, false);
         } else {
             for t in 0..inputs.trees.len() {
                 built.add_tree(t);
@@ -225,6 +240,11 @@ impl HierarchicalFrame {
                 }
             }
         }
+        cut.boxes.clear();
+        cut.boxes.extend(self.what.iter().map(|what| match *what {
+            What::Box(node) => Some(node),
+            What::Object(_) | What::Tree => None,
+        }));
         cut.rendering = inputs.rendering;
         cut.coarsest_forced = scene_dropped;
         core::mem::swap(&mut cut.hierarchy, &mut self.hierarchy);
@@ -353,7 +373,18 @@ impl Builder<'_, '_, '_, '_> {
         Some((node, value, full))
     }
 
-    fn add_box(&mut self, boxes: &BoxHierarchy, node: usize, inside: bool) -> Option<Added> {
+    /// Adds box `node` in view and what is in view under it. Below a box drawn as its
+    /// group impostor last frame (`under_group`), a box is added alone, as a leaf with its
+    /// impostor's ladder (valued with its trees' value and cost from when it was last
+    /// added with them), so the work follows the cut, not every tree in view: the cut
+    /// refines by at most one box level a frame.
+    fn add_box(
+        &mut self,
+        boxes: &BoxHierarchy,
+        node: usize,
+        inside: bool,
+        under_group: bool,
+    ) -> Option<Added> {
         if boxes.node_bounds(node).is_empty() {
             return None;
         }
@@ -363,9 +394,21 @@ impl Builder<'_, '_, '_, '_> {
                 NodeVisibility::Partial => false,
                 NodeVisibility::Outside | NodeVisibility::Untested => return None,
             };
+        let key = Key::Box(node as u32);
+        if under_group && let Some(&(value, full)) = self.frame.box_totals.get(&(node as u32)) {
+            if let Some((levels, times)) = (self.group_ladder)(node, value, full) {
+                let id = self.frame.hierarchy.add_object(&levels).ok()?;
+                self.push(key, What::Box(node as u32), times);
+                return Some((id, value, full));
+            }
+        }
+        let drawn_as_group = matches!(
+            self.frame.previous.get(&key),
+            Some(NodeSelection::Impostor(_))
+        );
         let children: Vec<Added> = match boxes.children(node) {
             Some(range) => range
-                .filter_map(|child| self.add_box(boxes, child, inside))
+                .filter_map(|child| self.add_box(boxes, child, inside, drawn_as_group))
                 .collect(),
             None => boxes
                 .node_instances(node)
@@ -384,12 +427,8 @@ impl Builder<'_, '_, '_, '_> {
         }
         let value = children.iter().map(|c| c.1).sum();
         let full = children.iter().map(|c| c.2).sum();
+        self.frame.box_totals.insert(node as u32, (value, full));
         let impostors = (self.group_ladder)(node, value, full);
-        self.group(
-            Key::Box(node as u32),
-            What::Box(node as u32),
-            &children,
-            impostors,
-        )
+        self.group(key, What::Box(node as u32), &children, impostors)
     }
 }
