@@ -740,3 +740,108 @@ fn many_trees_in_every_primitive_kind_take_four_draws() {
     assert!(stats.chunks.iter().all(|&c| c > 4), "{stats:?}");
     assert!(picture.coverage() > 1000, "{} pixels", picture.coverage());
 }
+
+/// Which 8×8 blocks of the picture have a pixel set.
+fn blocks(picture: &Picture) -> Vec<bool> {
+    const B: u32 = 8;
+    let (w, h) = (picture.width.div_ceil(B), picture.height.div_ceil(B));
+    let mut set = vec![false; (w * h) as usize];
+    for y in 0..picture.height {
+        for x in 0..picture.width {
+            if picture.lit(x, y) {
+                set[((y / B) * w + x / B) as usize] = true;
+            }
+        }
+    }
+    set
+}
+
+/// The 8×8 blocks set in `part` that are also set in `whole`, over the blocks set in
+/// `part`: where two pictures draw, at the scale of a far group rather than a leaf.
+fn share_inside(part: &Picture, whole: &Picture) -> f64 {
+    let (p, w) = (blocks(part), blocks(whole));
+    let inside = p.iter().zip(&w).filter(|(a, b)| **a && **b).count();
+    inside as f64 / p.iter().filter(|a| **a).count().max(1) as f64
+}
+
+/// A box's group impostor is drawn by the pass where its trees are: sixteen slender trees
+/// on a grid seen from afar, drawn in full, then their group model alone — as triangles
+/// (its stems and enlarged leaves) and as lines and points.
+#[test]
+fn a_group_impostor_covers_where_its_trees_are() {
+    use bevy::math::Affine3A;
+    use bevy_sherwood::tree::{GroupMember, GroupModelOptions, group_model};
+    let model = species("slender");
+    let far_first = model.far_first_leaves();
+    let spacing = (model.bounds.max - model.bounds.min).xz().max_element() * 1.1;
+    let places: Vec<Vec3> = (0..16)
+        .map(|i| Vec3::new((i % 4) as f32 - 1.5, 0.0, (i / 4) as f32 - 1.5) * spacing)
+        .collect();
+    let members: Vec<GroupMember> = places
+        .iter()
+        .map(|&p| GroupMember {
+            model: &model,
+            transform: Affine3A::from_translation(p),
+            far_first: &far_first,
+        })
+        .collect();
+    let group = group_model(&members, &GroupModelOptions::default()).unwrap();
+    let height = model.bounds.max.y;
+    let target = Vec3::new(0.0, height * 0.5, 0.0);
+    let eye = target + Vec3::new(0.3, 1.2, 1.0).normalize() * spacing * 9.0;
+
+    let trees_model = model.clone();
+    let (trees, _) = render("group_members", eye, target, move |world| {
+        let handle = world.resource_mut::<Assets<TreeModel>>().add(trees_model);
+        for p in places {
+            world.spawn((
+                TreeInstance::standalone(handle.clone()),
+                Transform::from_translation(p),
+            ));
+        }
+    });
+    let full = TreeDrawList::full(&group);
+    let (as_triangles, stats) = render("group_impostor_triangles", eye, target, {
+        let group = group.clone();
+        move |world| {
+            spawn_tree(world, group, Some(full));
+        }
+    });
+    assert!(stats.counts.triangles > 0);
+    let leaves = group.leaves.len() as u32;
+    let lines_and_points = only(|l| {
+        l.trunk_lines.push(LineRun {
+            segments: 0..group.segments.len() as u32,
+            width: 2,
+        });
+        l.leaf_points.push(PointRun {
+            leaves: 0..leaves,
+            size: 6,
+        });
+    });
+    let (as_points, stats) = render("group_impostor_points", eye, target, move |world| {
+        spawn_tree(world, group, Some(lines_and_points));
+    });
+    assert_eq!(stats.counts.points, u64::from(leaves));
+    let trees_px = trees.coverage() as f64;
+    for (name, picture) in [("triangles", &as_triangles), ("points", &as_points)] {
+        // Most of what the group draws lies where its trees are, and it covers a good
+        // part of their silhouette (it keeps 256 of their leaves, enlarged).
+        let inside = share_inside(picture, &trees);
+        let covered = share_inside(&trees, picture);
+        let ratio = picture.coverage() as f64 / trees_px;
+        println!("{name}: inside {inside:.3}, covers {covered:.3}, pixels ×{ratio:.2}");
+        assert!(
+            inside > 0.8,
+            "{name}: only {inside:.3} of the group's blocks on its trees"
+        );
+        assert!(
+            covered > 0.6,
+            "{name}: covers {covered:.3} of its trees' blocks"
+        );
+        assert!(
+            (0.3..3.0).contains(&ratio),
+            "{name}: ×{ratio:.2} the trees' pixels"
+        );
+    }
+}
