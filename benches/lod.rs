@@ -1,22 +1,27 @@
 //! The Sherwood stages of a whole frame (`app.update()` of a headless app: animate, cull,
 //! value, budget, select) for forests of 2 000, 20 000 and 100 000 trees, every tree in
-//! view, in TCLOD mode at a 100 ms target. Goal (release): under 2 ms for 20 000 visible
-//! trees. `cargo bench --no-default-features --bench lod`.
+//! view, in TCLOD mode at a 100 ms target, with Robin Hood and with the hierarchical
+//! strategy (group impostors over the culling boxes). Goals (release): under 2 ms for
+//! 20 000 visible trees with Robin Hood, under 3 ms for 100 000 with hierarchical.
+//! `cargo bench --no-default-features --bench lod` (`-- robin-hood` or `-- hierarchical`
+//! for one strategy).
 //!
-//! After the timings it prints, per forest, the mean time of the LOD stages (value,
-//! budget, select, from `LodDiagnostics`) over 64 more frames.
+//! After the timings it prints, per forest and strategy, the mean time of the LOD stages
+//! (value, budget, select, from `LodDiagnostics`) over 64 more frames, and the cut.
 
 use std::time::Duration;
 
 use bevy::prelude::*;
+use bevy_sherwood::lod::{GroupImpostors, StrategyKind};
 use bevy_sherwood::prelude::*;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-fn forest_app(trees: u32) -> App {
+fn forest_app(trees: u32, strategy: StrategyKind) -> App {
     let (mut app, size) = common::forest_of(trees);
+    app.world_mut().resource_mut::<FrameBudget>().strategy = strategy;
     // High above the centre, looking down: every tree in view.
     common::look_from(
         &mut app,
@@ -24,6 +29,19 @@ fn forest_app(trees: u32) -> App {
         Vec3::new(size / 2.0, 0.0, size / 2.0),
     );
     common::until_visible(&mut app);
+    if strategy == StrategyKind::Hierarchical {
+        // The group impostors are built once the strategy is chosen; then the cut refines
+        // one box level a frame.
+        for _ in 0..600 {
+            app.update();
+            if !app.world().resource::<GroupImpostors>().is_empty() {
+                break;
+            }
+        }
+        for _ in 0..32 {
+            app.update();
+        }
+    }
     app
 }
 
@@ -35,24 +53,31 @@ fn stages(c: &mut Criterion) {
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(10));
     let mut reports = Vec::new();
-    for trees in [2_000, 20_000, 100_000] {
-        // Built on first use, so that a filtered-out size costs no setup (criterion calls
-        // the routine once per sample).
-        let mut app = None;
-        group.bench_with_input(BenchmarkId::from_parameter(trees), &trees, |b, &trees| {
-            let app = app.get_or_insert_with(|| forest_app(trees));
-            b.iter(|| app.update());
-        });
-        if let Some(app) = &mut app {
-            reports.push((trees, stage_means(app)));
+    for (name, strategy) in [
+        ("robin-hood", StrategyKind::RobinHood),
+        ("hierarchical", StrategyKind::Hierarchical),
+    ] {
+        for trees in [2_000, 20_000, 100_000] {
+            // Built on first use, so that a filtered-out size costs no setup (criterion
+            // calls the routine once per sample).
+            let mut app = None;
+            group.bench_with_input(BenchmarkId::new(name, trees), &trees, |b, &trees| {
+                let app = app.get_or_insert_with(|| forest_app(trees, strategy));
+                b.iter(|| app.update());
+            });
+            if let Some(app) = &mut app {
+                reports.push((name, trees, stage_means(app)));
+            }
         }
     }
     group.finish();
-    for (trees, (d, [value, budget, select])) in reports {
+    for (name, trees, (d, [value, budget, select])) in reports {
         println!(
-            "{trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, select {select:.2}; mean of {REPORT_FRAMES} frames); {} triangles, {} lines, {} points",
+            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, select {select:.2}; mean of {REPORT_FRAMES} frames); {} groups and {} trees drawn; {} triangles, {} lines, {} points",
             d.visible_instances,
             value + budget + select,
+            d.groups_drawn,
+            d.trees_drawn,
             d.counts.triangles,
             d.counts.lines,
             d.counts.points

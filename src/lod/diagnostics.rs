@@ -19,7 +19,8 @@ pub struct LodDiagnostics {
     pub target_ms: f32,
     /// Visible objects (a tree's trunk and leaves count separately).
     pub visible_objects: u32,
-    /// Visible tree instances.
+    /// Visible tree instances: those culling found in view, or with the hierarchical
+    /// strategy those its cut reached (the others are drawn by group impostors).
     pub visible_instances: u32,
     /// Predicted logic time (the main world's update), ms.
     pub logic_ms: f32,

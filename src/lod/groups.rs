@@ -65,9 +65,14 @@ impl GroupImpostors {
         self.failed
     }
 
-    /// Whether they are built for the hierarchy the culling holds now.
-    pub(crate) fn current(&self, layout: Option<u64>, depth: u32) -> bool {
-        matches!((self.built, layout), (Some((l, d, _)), Some(now)) if l == now && d == depth)
+    /// Whether box `node` of the culling's hierarchy has a group impostor built for the
+    /// hierarchy it holds now (impostors of an older layout are not used).
+    pub(crate) fn has_group(&self, culling: Option<&ForestCulling>, node: usize) -> bool {
+        let current = culling.is_some_and(|c| {
+            let depth = c.hierarchy.as_ref().map_or(0, |h| h.depth());
+            matches!((self.built, c.layout_version()), (Some((l, d, _)), Some(now)) if l == now && d == depth)
+        });
+        current && self.nodes.get(node).is_some_and(Option::is_some)
     }
 }
 

@@ -343,10 +343,7 @@ pub(super) fn hand_out_time(
                             )
                         };
                     let boxes = culling.as_deref().and_then(|c| c.hierarchy.as_ref());
-                    // Impostors built for another layout than this frame's are not used.
-                    let groups_current = culling.as_deref().is_some_and(|c| {
-                        impostors.current(c.layout_version(), boxes.map_or(0, |b| b.depth()))
-                    });
+                    let has_group = |node: usize| impostors.has_group(culling.as_deref(), node);
                     let inputs = HierarchyInputs {
                         boxes,
                         instances: culling.as_deref().map_or(0, |c| c.result.visibility.len()),
@@ -356,13 +353,13 @@ pub(super) fn hand_out_time(
                         ladders: ladder_entries,
                         rendering,
                         layout: culling.as_deref().and_then(|c| c.layout_version()),
+                        has_group: &has_group,
                     };
                     let mut group_scratch = TreeDrawList::default();
                     let mut group_ladder = |node: usize, value: f32, members_full: f32| {
-                        if !groups_current {
+                        if !has_group(node) {
                             return None;
                         }
-                        impostors.nodes.get(node)?.as_ref()?;
                         let scratch = &mut group_scratch;
                         let full = group_search(node, 1.0, scratch).cost;
                         let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
@@ -641,19 +638,33 @@ pub(super) fn write_draw_lists(
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
-    // Invisible instances draw nothing; visible ones get their chosen list.
-    let mut next = 0;
-    for &entity in &table.entities {
-        let Ok(mut list) = lists.get_mut(entity) else {
+    // Trees shown last frame and not chosen now draw nothing; the chosen ones get their
+    // list. (Only those: the rest of a large forest is left alone, already empty.)
+    frame.stamp = frame.stamp.wrapping_add(1).max(1);
+    let stamp = frame.stamp;
+    frame.stamps.resize(table.len(), 0);
+    for tree in &frame.trees {
+        if let Some(s) = frame.stamps.get_mut(tree.instance as usize) {
+            *s = stamp;
+        }
+    }
+    for entity in frame.trees_shown.drain(..) {
+        let chosen = table
+            .index_of(entity)
+            .is_some_and(|i| frame.stamps.get(i as usize) == Some(&stamp));
+        if !chosen && let Ok(mut list) = lists.get_mut(entity) {
+            list.clear();
+        }
+    }
+    for (tree, chosen) in frame.trees.iter().zip(&mut frame.lists) {
+        let Ok(mut list) = lists.get_mut(tree.entity) else {
             continue;
         };
-        if next < frame.trees.len() && frame.trees[next].entity == entity {
-            // Swapped, not compared and copied: the frame's list gets the old one's
-            // allocations to fill next frame.
-            core::mem::swap(&mut *list, &mut frame.lists[next]);
-            next += 1;
-        } else if !list.is_empty() {
-            list.clear();
+        // Swapped, not compared and copied: the frame's list gets the old one's
+        // allocations to fill next frame.
+        core::mem::swap(&mut *list, chosen);
+        if !list.is_empty() {
+            frame.trees_shown.push(tree.entity);
         }
     }
     // Group impostors: last frame's cleared, this frame's cut swapped in.

@@ -136,6 +136,8 @@ pub(super) struct HierarchyInputs<'a> {
     pub(super) rendering: f32,
     /// The instance layout the boxes index (a new one forgets last frame's cut).
     pub(super) layout: Option<u64>,
+    /// Whether box `node` has a group impostor (built for this layout).
+    pub(super) has_group: &'a dyn Fn(usize) -> bool,
 }
 
 impl HierarchicalFrame {
@@ -260,6 +262,72 @@ impl HierarchicalFrame {
         }
     }
 
+    /// Whether box `node` enters this frame's hierarchy with what is under it (`Some`,
+    /// with whether it was drawn as its group last frame, which its children are then
+    /// under), or alone as a leaf with its group impostor's ladder (`None`).
+    ///
+    /// Alone where last frame's cut makes opening it this frame impossible: below a box
+    /// drawn as its group (`under_group`), or drawn as its group at a rung it can still
+    /// refine within. Its trees' value and cost are then last known ones. So the work of
+    /// a frame follows the cut, not every tree in view; the cut refines by at most one
+    /// box level a frame (coarsening is not limited).
+    fn expands(
+        &self,
+        node: usize,
+        under_group: bool,
+        has_group: &dyn Fn(usize) -> bool,
+    ) -> Option<bool> {
+        let previous = self.previous.get(&Key::Box(node as u32)).copied();
+        let alone = has_group(node)
+            && self.box_totals.contains_key(&(node as u32))
+            && (under_group || matches!(previous, Some(NodeSelection::Impostor(k)) if k > 0));
+        (!alone).then_some(matches!(previous, Some(NodeSelection::Impostor(_))))
+    }
+
+    /// Marks in `needed` (one per instance) the instances this frame's hierarchy will
+    /// add as trees: those under the boxes in view that [`expands`](Self::expands) opens
+    /// down to their trees. The Value stage values only these.
+    pub(super) fn needed_instances(
+        &mut self,
+        boxes: &BoxHierarchy,
+        layout: Option<u64>,
+        instances: usize,
+        has_group: &dyn Fn(usize) -> bool,
+        needed: &mut Vec<bool>,
+    ) {
+        needed.clear();
+        needed.resize(instances, false);
+        if self.layout != layout {
+            needed.fill(true);
+            return;
+        }
+        let mut stack = vec![(0usize, false, false)];
+        while let Some((node, inside, under_group)) = stack.pop() {
+            if boxes.node_bounds(node).is_empty() {
+                continue;
+            }
+            let inside = inside
+                || match boxes.node_visibility(node) {
+                    NodeVisibility::Full => true,
+                    NodeVisibility::Partial => false,
+                    NodeVisibility::Outside | NodeVisibility::Untested => continue,
+                };
+            let Some(drawn_as_group) = self.expands(node, under_group, has_group) else {
+                continue;
+            };
+            match boxes.children(node) {
+                Some(range) => stack.extend(range.map(|c| (c, inside, drawn_as_group))),
+                None => {
+                    for &i in boxes.node_instances(node) {
+                        if let Some(slot) = needed.get_mut(i as usize) {
+                            *slot = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Draws `node`'s subtree at its coarsest: its cheapest impostor, or its children's.
     fn coarsest(&mut self, node: NodeId, outcome: &mut HierarchyOutcome) {
         let impostors = self.hierarchy.impostors(node);
@@ -373,11 +441,8 @@ impl Builder<'_, '_, '_, '_> {
         Some((node, value, full))
     }
 
-    /// Adds box `node` in view and what is in view under it. Below a box drawn as its
-    /// group impostor last frame (`under_group`), a box is added alone, as a leaf with its
-    /// impostor's ladder (valued with its trees' value and cost from when it was last
-    /// added with them), so the work follows the cut, not every tree in view: the cut
-    /// refines by at most one box level a frame.
+    /// Adds box `node` in view and what is in view under it — or, where
+    /// [`HierarchicalFrame::expands`] says so, the box alone.
     fn add_box(
         &mut self,
         boxes: &BoxHierarchy,
@@ -395,17 +460,14 @@ impl Builder<'_, '_, '_, '_> {
                 NodeVisibility::Outside | NodeVisibility::Untested => return None,
             };
         let key = Key::Box(node as u32);
-        if under_group && let Some(&(value, full)) = self.frame.box_totals.get(&(node as u32)) {
-            if let Some((levels, times)) = (self.group_ladder)(node, value, full) {
-                let id = self.frame.hierarchy.add_object(&levels).ok()?;
-                self.push(key, What::Box(node as u32), times);
-                return Some((id, value, full));
-            }
-        }
-        let drawn_as_group = matches!(
-            self.frame.previous.get(&key),
-            Some(NodeSelection::Impostor(_))
-        );
+        let has_group = self.inputs.has_group;
+        let Some(drawn_as_group) = self.frame.expands(node, under_group, has_group) else {
+            let &(value, full) = self.frame.box_totals.get(&(node as u32))?;
+            let (levels, times) = (self.group_ladder)(node, value, full)?;
+            let id = self.frame.hierarchy.add_object(&levels).ok()?;
+            self.push(key, What::Box(node as u32), times);
+            return Some((id, value, full));
+        };
         let children: Vec<Added> = match boxes.children(node) {
             Some(range) => range
                 .filter_map(|child| self.add_box(boxes, child, inside, drawn_as_group))

@@ -171,6 +171,15 @@ pub(super) struct LodFrame {
     group_lists: Vec<(Entity, TreeDrawList)>,
     /// The group impostors whose lists were written last frame.
     groups_shown: Vec<Entity>,
+    /// The trees whose lists were written non-empty last frame.
+    trees_shown: Vec<Entity>,
+    /// Per instance, the frame stamp it was last chosen at (`stamp`: this frame's).
+    stamps: Vec<u32>,
+    stamp: u32,
+    /// Whether the Value stage took only the `needed` instances (hierarchical strategy),
+    /// and which those are, per instance.
+    only_needed: bool,
+    needed: Vec<bool>,
     /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
     /// when models change.
     infos: Vec<ModelInfo>,

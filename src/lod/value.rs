@@ -7,7 +7,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
 use super::select::{self, PrimitiveCosts, TreeView, VisibleGroup};
-use super::{FrameBudget, LadderObjects, LodFrame};
+use super::{FrameBudget, GroupImpostors, LadderObjects, LodFrame, StrategyKind};
 use crate::budget::{ValueInputs, ValueModel};
 use crate::cost::CostModel;
 use crate::culling::{CullView, ForestCulling, FrustumPlanes, InstanceVisibility};
@@ -204,6 +204,7 @@ pub(super) fn value_objects(
     models: Res<Assets<TreeModel>>,
     version: Res<TreeModelsVersion>,
     mut ladders: ResMut<LadderObjects>,
+    impostors: Res<GroupImpostors>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -219,6 +220,19 @@ pub(super) fn value_objects(
     frame.viewport_pixels = view.viewport_pixels;
     frame.view = Some(*view);
     if let Some(culling) = culling {
+        // The hierarchical strategy values only the trees its cut can reach this frame.
+        let boxes = culling.hierarchy.as_ref();
+        frame.only_needed = budget.strategy == StrategyKind::Hierarchical && boxes.is_some();
+        if let (true, Some(boxes)) = (frame.only_needed, boxes) {
+            let has_group = |node: usize| impostors.has_group(Some(&culling), node);
+            frame.hierarchical.needed_instances(
+                boxes,
+                culling.layout_version(),
+                culling.result.visibility.len(),
+                &has_group,
+                &mut frame.needed,
+            );
+        }
         value_trees(
             frame,
             &budget,
@@ -291,10 +305,15 @@ fn value_trees(
         trees,
         groups,
         keyed,
+        only_needed,
+        needed,
         ..
     } = frame;
     keyed.clear();
     for (i, visibility) in culling.result.visibility.iter().enumerate() {
+        if *only_needed && !needed.get(i).copied().unwrap_or(true) {
+            continue;
+        }
         let trunk_visible = match visibility {
             InstanceVisibility::Invisible => continue,
             InstanceVisibility::Full => true,
