@@ -9,7 +9,7 @@ use bevy::prelude::*;
 
 use super::{FrameBudget, GroupSettings, StrategyKind};
 use crate::culling::ForestCulling;
-use crate::draw::{TreeDrawList, TreeShading};
+use crate::draw::{ModelSlot, TreeDrawList, TreeShading};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::tree::{GroupMember, TreeModel, group_model};
 
@@ -29,6 +29,8 @@ pub(crate) struct GroupImpostor {
     pub(crate) model: Handle<TreeModel>,
     /// Where the model's origin stands (world space).
     pub(crate) origin: Vec3,
+    /// What counting its draw list needs.
+    pub(crate) slot: ModelSlot,
 }
 
 /// The group impostors of the culling hierarchy's boxes, built by the LOD plugin while
@@ -167,6 +169,7 @@ pub(super) fn build_group_impostors(
             .and_then(|&e| shadings.get(e).ok())
             .copied()
             .unwrap_or_else(|| TreeShading::of_model(&model));
+        let slot = ModelSlot::of(&model);
         let handle = models.add(model);
         let entity = commands
             .spawn((
@@ -185,6 +188,7 @@ pub(super) fn build_group_impostors(
             entity,
             model: handle,
             origin,
+            slot,
         }));
     }
     groups.built = Some(key);

@@ -141,6 +141,7 @@ pub(super) fn hand_out_time(
     let mut benefit_bound = 0.0;
     let mut report_time = Duration::ZERO;
     let mut groups_drawn = 0;
+    let mut group_counts = PrimitiveCounts::default();
     // The hierarchical cut's benefit (its groups' included), for the report.
     let mut cut_benefit = None;
     match budget.mode {
@@ -412,6 +413,7 @@ pub(super) fn hand_out_time(
                                 *entity = g.entity;
                                 lists_used += 1;
                                 let chosen = take(group_search(node as usize, fraction, list));
+                                group_counts += g.slot.counts(list);
                                 used += chosen.cost;
                                 truncated += u32::from(chosen.truncated);
                             }
@@ -516,7 +518,7 @@ pub(super) fn hand_out_time(
         }
     }
 
-    let mut counts = PrimitiveCounts::default();
+    let mut counts = group_counts;
     for (tree, list) in frame.trees.iter().zip(&frame.lists) {
         if let Some(info) = frame.infos.get(tree.model as usize) {
             counts += info.slot.counts(list);
