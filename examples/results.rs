@@ -10,6 +10,9 @@
 //! Each run is `RAW/<trees>_<path>_<label>.csv` (the forest example's `--record`), where
 //! the label is `unlimited`, `hold_<fraction>` (identical frames: the noise floor) or
 //! `<mode>_<strategy>_<fraction>[_nocorr]`; `RAW/GRID` says which grid produced them.
+//!
+//! `results --large results/large docs` turns the runs of `scripts/large-forest.sh`
+//! into `docs/large-forest.md` instead.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -21,6 +24,8 @@ use record::Record;
 
 #[path = "support/frame_stats.rs"]
 mod frame_stats;
+#[path = "support/large_forest.rs"]
+mod large_forest;
 #[path = "support/record.rs"]
 mod record;
 
@@ -369,11 +374,17 @@ fn frame_times(run: &Run, label: String) -> Series {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [raw, docs] = args.as_slice() else {
-        eprintln!("usage: results RAW_DIR DOCS_DIR");
-        std::process::exit(2);
+    let result = match args.as_slice() {
+        [raw, docs] => run(Path::new(raw), Path::new(docs)),
+        [flag, raw, docs] if flag == "--large" => {
+            large_forest::report(Path::new(raw), Path::new(docs))
+        }
+        _ => {
+            eprintln!("usage: results RAW_DIR DOCS_DIR | results --large RAW_DIR DOCS_DIR");
+            std::process::exit(2);
+        }
     };
-    if let Err(e) = run(Path::new(raw), Path::new(docs)) {
+    if let Err(e) = result {
         eprintln!("results: {e}");
         std::process::exit(1);
     }

@@ -126,7 +126,9 @@ fn hud_text(
     );
     match hud.target_ms.or(budget.map(|b| b.target_ms)) {
         Some(target) => {
-            let mode = budget.map_or(String::new(), |b| format!(" ({:?})", b.mode));
+            let mode = budget.map_or(String::new(), |b| {
+                format!(" ({:?}, {:?})", b.mode, b.strategy)
+            });
             let _ = writeln!(s, "target    {target:.1} ms{mode}");
         }
         None => {
@@ -162,6 +164,13 @@ fn hud_text(
                 d.floor_excess_ms, d.visible_objects
             );
         }
+    }
+    if let Some(d) = lod.filter(|d| d.groups_drawn > 0) {
+        let _ = writeln!(
+            s,
+            "cut       {} groups, {} trees on their own",
+            d.groups_drawn, d.trees_drawn
+        );
     }
     if let Some(gpu) = stats.gpu_time_ms {
         let _ = writeln!(s, "pass GPU  {gpu:.2} ms");
