@@ -71,7 +71,7 @@ impl GroupImpostors {
     /// hierarchy it holds now (impostors of an older layout are not used).
     pub(crate) fn has_group(&self, culling: Option<&ForestCulling>, node: usize) -> bool {
         let current = culling.is_some_and(|c| {
-            let depth = c.hierarchy.as_ref().map_or(0, |h| h.depth());
+            let depth = c.hierarchy.as_ref().map_or(0, crate::culling::BoxHierarchy::depth);
             matches!((self.built, c.layout_version()), (Some((l, d, _)), Some(now)) if l == now && d == depth)
         });
         current && self.nodes.get(node).is_some_and(Option::is_some)
