@@ -2,7 +2,8 @@
 //! value, budget, select) for forests of 2 000, 20 000 and 100 000 trees, every tree in
 //! view, in TCLOD mode at a 100 ms target, with Robin Hood and with the hierarchical
 //! strategy (group impostors over the culling boxes). Goals (release): under 2 ms for
-//! 20 000 visible trees with Robin Hood, under 3 ms for 100 000 with hierarchical.
+//! 20 000 visible trees with Robin Hood, under 3 ms for 100 000 with hierarchical. Robin
+//! Hood also runs with far trees decided every other frame (`FrameBudget::far_refresh`).
 //! `cargo bench --no-default-features --bench lod` (`-- robin-hood` or `-- hierarchical`
 //! for one strategy).
 //!
@@ -19,9 +20,11 @@ use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-fn forest_app(trees: u32, strategy: StrategyKind) -> App {
+fn forest_app(trees: u32, strategy: StrategyKind, far_refresh: u32) -> App {
     let (mut app, size) = common::forest_of(trees);
-    app.world_mut().resource_mut::<FrameBudget>().strategy = strategy;
+    let mut budget = app.world_mut().resource_mut::<FrameBudget>();
+    budget.strategy = strategy;
+    budget.far_refresh = far_refresh;
     // High above the centre, looking down: every tree in view.
     common::look_from(
         &mut app,
@@ -53,16 +56,18 @@ fn stages(c: &mut Criterion) {
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(10));
     let mut reports = Vec::new();
-    for (name, strategy) in [
-        ("robin-hood", StrategyKind::RobinHood),
-        ("hierarchical", StrategyKind::Hierarchical),
+    for (name, strategy, far_refresh) in [
+        ("robin-hood", StrategyKind::RobinHood, 1),
+        // Far trees decided every other frame (`FrameBudget::far_refresh`, off by default).
+        ("robin-hood-far-refresh-2", StrategyKind::RobinHood, 2),
+        ("hierarchical", StrategyKind::Hierarchical, 1),
     ] {
         for trees in [2_000, 20_000, 100_000] {
             // Built on first use, so that a filtered-out size costs no setup (criterion
             // calls the routine once per sample).
             let mut app = None;
             group.bench_with_input(BenchmarkId::new(name, trees), &trees, |b, &trees| {
-                let app = app.get_or_insert_with(|| forest_app(trees, strategy));
+                let app = app.get_or_insert_with(|| forest_app(trees, strategy, far_refresh));
                 b.iter(|| app.update());
             });
             if let Some(app) = &mut app {
@@ -73,9 +78,10 @@ fn stages(c: &mut Criterion) {
     group.finish();
     for (name, trees, (d, [value, budget, select])) in reports {
         println!(
-            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, select {select:.2}; mean of {REPORT_FRAMES} frames); {} groups and {} trees drawn; {} triangles, {} lines, {} points",
+            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, select {select:.2}; mean of {REPORT_FRAMES} frames); {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
             d.visible_instances,
             value + budget + select,
+            d.held_trees,
             d.groups_drawn,
             d.trees_drawn,
             d.counts.triangles,

@@ -63,6 +63,8 @@ usage: forest [OPTIONS]
   --target-ms T          target frame time in ms (default 100)
   --mode tclod|tc|static|unlimited
   --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget|hierarchical
+  --far-refresh N        decide far trees again only every N frames, in turn (Robin
+                         Hood; default 1: every frame)
   --value p8|p9|p10|p11
   --benefit              score each frame's hand-out (the record's benefit and
                          benefit_bound columns; adds about one hand-out's time to the
@@ -107,6 +109,7 @@ The record (--record) has one row per measured frame, times in ms:
   triangles, lines, points
                          primitives selected
   truncated, undrawn     objects drawn below their cheapest, objects not drawn
+  held_trees             far trees keeping their last decision (--far-refresh)
   groups_drawn           group impostors drawn (hierarchical strategy)
   trees_drawn            visible trees drawn on their own (not by a group)
   wasted_ms              rendering time handed out that nobody used
@@ -173,6 +176,8 @@ struct Options {
     mode: LodMode,
     strategy: StrategyKind,
     value: ValueFunction,
+    /// [`FrameBudget::far_refresh`].
+    far_refresh: u32,
     wind: bool,
     /// Score each frame's hand-out ([`BenefitReport`]).
     benefit: bool,
@@ -227,6 +232,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         mode: LodMode::Tclod,
         strategy: StrategyKind::RobinHood,
         value: ValueFunction::P11,
+        far_refresh: 1,
         wind: true,
         benefit: false,
         correction: true,
@@ -271,6 +277,12 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--frames" => o.frames = Some(number("--frames", it.next())?),
             "--warmup" => o.warmup = number("--warmup", it.next())?,
             "--target-ms" => o.target_ms = number("--target-ms", it.next())?,
+            "--far-refresh" => {
+                o.far_refresh = number("--far-refresh", it.next())?;
+                if o.far_refresh == 0 {
+                    return Err("--far-refresh: must be at least 1".into());
+                }
+            }
             "--mode" => {
                 let name = it.next().map(String::as_str);
                 o.mode = MODES
@@ -488,6 +500,7 @@ pub(crate) fn run(args: Vec<String>) -> AppExit {
         mode: LodMode::Unlimited,
         strategy: options.strategy,
         value: options.value,
+        far_refresh: options.far_refresh,
         ..default()
     })
     .insert_resource(BenefitReport {
@@ -1130,6 +1143,7 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("points", |r| r.diagnostics.counts.points.to_string()),
     ("truncated", |r| r.diagnostics.truncated.to_string()),
     ("undrawn", |r| r.diagnostics.undrawn.to_string()),
+    ("held_trees", |r| r.diagnostics.held_trees.to_string()),
     ("groups_drawn", |r| r.diagnostics.groups_drawn.to_string()),
     ("trees_drawn", |r| r.diagnostics.trees_drawn.to_string()),
     ("wasted_ms", |r| ms(r.diagnostics.wasted_ms)),

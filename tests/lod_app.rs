@@ -345,3 +345,41 @@ fn the_selection_spends_its_time_up_to_full_detail() {
         "{d:?}"
     );
 }
+
+#[test]
+fn far_trees_decided_in_turn_keep_their_lists_and_their_time() {
+    // From high above, most trees are far and entirely in view: decided as a whole.
+    let mut app = common::default_forest_view(
+        Vec3::new(-60.0, 120.0, -60.0),
+        Vec3::new(120.0, 0.0, 120.0),
+        |_| {},
+    );
+    let budget = |far_refresh| FrameBudget {
+        target_ms: 60.0,
+        far_refresh,
+        ..Default::default()
+    };
+    let d = frame(&mut app, budget(1));
+    assert_eq!(d.held_trees, 0, "every tree decided every frame by default");
+    let mut held = 0;
+    for _ in 0..4 {
+        let d = frame(&mut app, budget(2));
+        held = held.max(d.held_trees);
+        // Held trees are still visible and drawn; their time is taken off the rest's.
+        assert_eq!(d.undrawn, 0);
+        let (seen, unseen) = lists(&mut app);
+        assert!(
+            seen.iter().all(|l| !l.is_empty()),
+            "a visible tree draws nothing"
+        );
+        assert!(unseen.iter().all(TreeDrawList::is_empty));
+        let selection = d.predicted_render_ms - d.render_fixed_ms;
+        assert!(
+            selection <= d.render_budget_ms * 1.0001 + d.floor_excess_ms + 1e-4,
+            "{d:?}"
+        );
+    }
+    assert!(held > 10, "far trees take turns ({held} held)");
+    // Back to every frame.
+    assert_eq!(frame(&mut app, budget(1)).held_trees, 0);
+}

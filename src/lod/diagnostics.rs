@@ -70,6 +70,9 @@ pub struct LodDiagnostics {
     /// Visible objects drawn with nothing (always 0 with Robin Hood and with the
     /// hierarchical strategy, whose group impostors stand for the trees they cover).
     pub undrawn: u32,
+    /// Far trees that kept last decision's representation this frame
+    /// ([`FrameBudget::far_refresh`](super::FrameBudget::far_refresh); 0 by default).
+    pub held_trees: u32,
     /// Group impostors drawn ([`StrategyKind::Hierarchical`](super::StrategyKind::Hierarchical);
     /// 0 otherwise).
     pub groups_drawn: u32,

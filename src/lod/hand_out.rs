@@ -48,7 +48,7 @@ pub(super) fn hand_out_time(
     let costs = cost_model
         .primitive_costs()
         .within_viewport(frame.viewport_pixels);
-    let visible_instances = frame.trees.len() as u32;
+    let visible_instances = (frame.trees.len() + frame.held.len()) as u32;
     let logic = cost_model.logic_time(visible_instances);
     let overlap = cost_model.overlap();
     let fixed = cost_model.render_fixed();
@@ -256,14 +256,27 @@ pub(super) fn hand_out_time(
                         )
                     }
                 }));
+                // Far trees held this frame keep what they draw; the rest share what
+                // is left (`FrameBudget::far_refresh`).
+                let holding = frame.decided_key.is_some();
+                let tree_parts = &mut frame.tree_parts;
+                tree_parts.clear();
+                if holding {
+                    tree_parts.resize(trees.len(), select::Selected::default());
+                }
                 frame.robin_hood.distribute_with(
                     &frame.values,
                     &frame.complexities,
                     &frame.floors,
-                    rendering,
+                    (rendering - frame.held_parts.cost).max(0.0),
                     |i, given| {
                         let (chosen, ladder_level) = draw(i, given);
                         let chosen = take(chosen);
+                        if let Some(tree) = tree_parts.get_mut(objects[i].index as usize)
+                            && objects[i].part != Part::Ladder
+                        {
+                            *tree = select::Selected::both(*tree, chosen);
+                        }
                         // A tree part's level: 0 at full detail, nothing more to buy.
                         let level = ladder_level.unwrap_or(u32::from(!chosen.full));
                         Fit {
@@ -509,7 +522,7 @@ pub(super) fn hand_out_time(
                 benefit_bound = oracle::sqrt_benefit_bound(&pairs, rendering) as f32;
                 report_time = report_start.elapsed();
             }
-            predicted = stats.used;
+            predicted = stats.used + take(frame.held_parts).cost;
             truncated = stats.truncated;
             undrawn = stats.dropped;
             wasted = stats.wasted;
@@ -519,9 +532,44 @@ pub(super) fn hand_out_time(
     }
 
     let mut counts = group_counts;
-    for (tree, list) in frame.trees.iter().zip(&frame.lists) {
+    counts += frame.held_counts;
+    let remember = frame.decided_key.is_some();
+    if remember {
+        frame.decided.resize(
+            frame.placed.len(),
+            (
+                select::Selected {
+                    cost: -1.0,
+                    ..Default::default()
+                },
+                PrimitiveCounts::default(),
+            ),
+        );
+    }
+    for (t, (tree, list)) in frame.trees.iter().zip(&frame.lists).enumerate() {
         if let Some(info) = frame.infos.get(tree.model as usize) {
-            counts += info.slot.counts(list);
+            let tree_counts = info.slot.counts(list);
+            counts += tree_counts;
+            // A far tree's decision, kept for the frames it is held (a tree not decided
+            // as a whole has none to keep).
+            if remember
+                && let (Some(slot), Some(parts)) = (
+                    frame.decided.get_mut(tree.instance as usize),
+                    frame.tree_parts.get(t),
+                )
+            {
+                *slot = if tree.leaf_depth.is_some() {
+                    (*parts, tree_counts)
+                } else {
+                    (
+                        select::Selected {
+                            cost: -1.0,
+                            ..Default::default()
+                        },
+                        PrimitiveCounts::default(),
+                    )
+                };
+            }
         }
     }
     // The selection by family, priced as the calibration alone would: what the cost
@@ -572,6 +620,7 @@ pub(super) fn hand_out_time(
         truncated,
         undrawn,
         groups_drawn,
+        held_trees: frame.held.len() as u32,
         trees_drawn: frame.lists[..frame.trees.len()]
             .iter()
             .filter(|list| !list.is_empty())
@@ -645,8 +694,9 @@ pub(super) fn write_draw_lists(
     frame.stamp = frame.stamp.wrapping_add(1).max(1);
     let stamp = frame.stamp;
     frame.stamps.resize(table.len(), 0);
-    for tree in &frame.trees {
-        if let Some(s) = frame.stamps.get_mut(tree.instance as usize) {
+    let held = frame.held.iter().copied();
+    for instance in frame.trees.iter().map(|t| t.instance).chain(held) {
+        if let Some(s) = frame.stamps.get_mut(instance as usize) {
             *s = stamp;
         }
     }
@@ -669,6 +719,13 @@ pub(super) fn write_draw_lists(
             frame.trees_shown.push(tree.entity);
         }
     }
+    // Held far trees keep last frame's list.
+    frame.trees_shown.extend(
+        frame
+            .held
+            .iter()
+            .filter_map(|&i| table.entities.get(i as usize)),
+    );
     // Group impostors: last frame's cleared, this frame's cut swapped in.
     for entity in frame.groups_shown.drain(..) {
         if let Ok(mut list) = lists.get_mut(entity) {

@@ -176,6 +176,25 @@ pub(super) struct LodFrame {
     /// Per instance, the frame stamp it was last chosen at (`stamp`: this frame's).
     stamps: Vec<u32>,
     stamp: u32,
+    /// Per instance, the last decision of a far tree (whole tree at one depth): what it
+    /// costs and draws (`cost` < 0: none to keep), for `FrameBudget::far_refresh`.
+    decided: Vec<(select::Selected, crate::draw::PrimitiveCounts)>,
+    /// What `decided` is valid for: layout, mode, widths and sizes, refresh.
+    decided_key: Option<(
+        u64,
+        LodMode,
+        crate::tree::PixelRange,
+        crate::tree::PixelRange,
+        u32,
+    )>,
+    /// The far trees held this frame (instances), and what they cost and draw together.
+    held: Vec<u32>,
+    held_parts: select::Selected,
+    held_counts: crate::draw::PrimitiveCounts,
+    /// Per visible tree, what its parts drew this frame (while far trees are held).
+    tree_parts: Vec<select::Selected>,
+    /// Value stages run (which far trees take their turn).
+    value_frames: u64,
     /// Whether the Value stage took only the `needed` instances (hierarchical strategy),
     /// and which those are, per instance.
     only_needed: bool,

@@ -71,6 +71,15 @@ pub struct FrameBudget {
     pub line_widths: PixelRange,
     /// Point sizes in pixels; static mode uses the smallest. Default: `PixelRange { min: 1, max: 20 }`.
     pub point_sizes: PixelRange,
+    /// With Robin Hood: a far tree (entirely in view and chosen as a whole, see
+    /// [`UNIFORM_DEPTH_RADII`](super::UNIFORM_DEPTH_RADII)) is decided again only every
+    /// this many frames, the far trees taking turns; in between it keeps its
+    /// representation, whose predicted time is taken off the rendering time before the
+    /// hand-out. Trades how fast a far tree follows the camera for the LOD stages' time
+    /// (at 20 000 far trees, 2 halves the Budget stage's work on them);
+    /// [`LodDiagnostics::held_trees`](super::LodDiagnostics::held_trees) counts the trees
+    /// held each frame. Default: `1` (every tree decided every frame, as in the paper).
+    pub far_refresh: u32,
 }
 
 impl Default for FrameBudget {
@@ -84,6 +93,7 @@ impl Default for FrameBudget {
             leaf_importance: 1.0 / 16.0,
             line_widths: PixelRange::default(),
             point_sizes: PixelRange::default(),
+            far_refresh: 1,
         }
     }
 }

@@ -299,6 +299,27 @@ fn value_trees(
     let value_of =
         |area: f32, at: Vec3, importance: f32| value_seen(budget, view, area, at, importance);
     let area_exponent_one = budget.value.area_exponent() == 1.0;
+    // Far trees decided in turn (`FrameBudget::far_refresh`).
+    frame.value_frames += 1;
+    frame.held.clear();
+    frame.held_parts = select::Selected::default();
+    frame.held_counts = crate::draw::PrimitiveCounts::default();
+    let refresh = u64::from(budget.far_refresh.max(1));
+    let holding = refresh > 1
+        && budget.strategy == StrategyKind::RobinHood
+        && matches!(budget.mode, super::LodMode::Tc | super::LodMode::Tclod);
+    let decided_key = (
+        table.layout_version(),
+        budget.mode,
+        budget.line_widths,
+        budget.point_sizes,
+        budget.far_refresh,
+    );
+    if !holding || frame.decided_key != Some(decided_key) {
+        frame.decided.clear();
+        frame.decided_key = holding.then_some(decided_key);
+    }
+    let turn = frame.value_frames;
     let LodFrame {
         infos,
         placed,
@@ -307,6 +328,10 @@ fn value_trees(
         keyed,
         only_needed,
         needed,
+        decided,
+        held,
+        held_parts,
+        held_counts,
         ..
     } = frame;
     keyed.clear();
@@ -341,6 +366,15 @@ fn value_trees(
         let whole = matches!(visibility, InstanceVisibility::Full)
             && info.has_leaves
             && center_depth >= UNIFORM_DEPTH_RADII * info.radius * scale;
+        if whole
+            && !(i as u64 + turn).is_multiple_of(refresh)
+            && let Some((parts, counts)) = decided.get(i).filter(|d| d.0.cost >= 0.0)
+        {
+            held.push(i as u32);
+            *held_parts = select::Selected::both(*held_parts, *parts);
+            *held_counts += *counts;
+            continue;
+        }
         let mut leaves_value = 0.0;
         let mut leaf_depth = None;
         if whole {
