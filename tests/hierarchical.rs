@@ -7,7 +7,9 @@ use bevy::prelude::*;
 use bevy_sherwood::budget::{HierarchicalLod, NodeSelection};
 use bevy_sherwood::culling::ForestCulling;
 use bevy_sherwood::draw::TreeDrawList;
-use bevy_sherwood::lod::{GroupImpostorOf, GroupImpostors, HierarchicalCut, StrategyKind};
+use bevy_sherwood::lod::{
+    GroupImpostorOf, GroupImpostors, GroupSettings, HierarchicalCut, StrategyKind,
+};
 use bevy_sherwood::prelude::*;
 
 const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
@@ -176,5 +178,46 @@ fn the_app_draws_what_the_pure_solver_chooses() {
             (selection - predicted).abs() <= 1e-3 * predicted.max(1e-6),
             "at {target} ms drawn {selection} s, solver's cut {predicted} s"
         );
+    }
+}
+
+#[test]
+fn group_geometry_stays_within_its_vertex_budget_coarsest_first() {
+    let mut app = common::default_forest_view(EYE, LOOK_AT, |app| {
+        app.insert_resource(GroupSettings {
+            max_vertices: 4000,
+            ..Default::default()
+        });
+    });
+    for _ in 0..3 {
+        frame(&mut app, hierarchical(2.0));
+    }
+    let groups = app.world().resource::<GroupImpostors>();
+    let count = groups.len();
+    assert!(count >= 1, "the root's group fits");
+    let world = app.world_mut();
+    let mut query = world.query::<(&GroupImpostorOf, &TreeInstance)>();
+    let mut vertices = 0;
+    let mut nodes = Vec::new();
+    for (of, tree) in query.iter(world) {
+        let model = world
+            .resource::<Assets<TreeModel>>()
+            .get(&tree.model)
+            .unwrap();
+        vertices += model.trunk_positions.len() + model.leaf_positions.len();
+        nodes.push(of.node);
+    }
+    assert_eq!(nodes.len(), count);
+    assert!(vertices <= 4000, "{vertices} vertices");
+    // Coarsest first: the root (box 0) has one, and every box with one has a parent with
+    // one (boxes are numbered level by level, four children each: box c's parent is
+    // (c - 1) / 4).
+    assert!(nodes.contains(&0));
+    for &node in &nodes {
+        assert!(node == 0 || nodes.contains(&((node - 1) / 4)), "box {node}");
+    }
+    // And the picture is still complete with fewer groups.
+    for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
+        assert!(!visible || own || by_group, "instance {i} unrepresented");
     }
 }

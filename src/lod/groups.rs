@@ -125,10 +125,13 @@ pub(super) fn build_group_impostors(
     let options = settings.model_options();
     let mut built = Vec::with_capacity(hierarchy.node_count());
     let mut failed = 0;
+    // Boxes are numbered level by level from the root: coarsest first.
+    let mut vertices = 0usize;
+    let mut full = false;
     for node in 0..hierarchy.node_count() {
         let trees = hierarchy.node_instances(node);
         let bounds = hierarchy.node_bounds(node);
-        if trees.len() < settings.min_trees.max(1) as usize || bounds.is_empty() {
+        if full || trees.len() < settings.min_trees.max(1) as usize || bounds.is_empty() {
             built.push(None);
             continue;
         }
@@ -147,7 +150,20 @@ pub(super) fn build_group_impostors(
             })
             .collect();
         match group_model(&members, &options) {
-            Ok(model) => built.push(Some((node, origin, model, trees[0]))),
+            Ok(model) => {
+                vertices += model.trunk_positions.len() + model.leaf_positions.len();
+                if vertices > settings.max_vertices as usize {
+                    full = true;
+                    info!(
+                        "group impostors stop at culling box {node} (level {}): GroupSettings::max_vertices ({}) reached",
+                        hierarchy.level_of(node),
+                        settings.max_vertices
+                    );
+                    built.push(None);
+                } else {
+                    built.push(Some((node, origin, model, trees[0])));
+                }
+            }
             Err(error) => {
                 warn!(
                     "group impostor of culling box {node} ({} trees): {error}",

@@ -133,6 +133,12 @@ pub struct GroupSettings {
     pub leaves: u32,
     /// Trees whose stem and leaves a group keeps, at most. Default: `32`.
     pub trunks: u32,
+    /// Vertices all the groups may have together: boxes are given groups coarsest first
+    /// (the root, then each level down) until the next would pass it, so that the packed
+    /// geometry stays within what a GPU binds at once (wgpu's default limit is 128 MiB,
+    /// 4 Mi vertices of the pass's 32 bytes, and the trees need their share). Default:
+    /// `2_000_000` (~1 600 groups at the other defaults).
+    pub max_vertices: u32,
 }
 
 impl Default for GroupSettings {
@@ -141,6 +147,7 @@ impl Default for GroupSettings {
             min_trees: 16,
             leaves: 256,
             trunks: 32,
+            max_vertices: 2_000_000,
         }
     }
 }
