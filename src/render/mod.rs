@@ -579,6 +579,7 @@ fn create_bind_groups(
     view_uniforms: Res<ViewUniforms>,
     device: Res<RenderDevice>,
     cache: Res<PipelineCache>,
+    mut warned: Local<bool>,
 ) {
     let (
         Some(pipeline),
@@ -607,6 +608,34 @@ fn create_bind_groups(
         commands.remove_resource::<ForestBindGroups>();
         return;
     };
+    // A buffer past what the device binds at once would fail validation and quit the
+    // app: draw nothing and say why instead.
+    let limit = device.limits().max_storage_buffer_binding_size;
+    let too_large = [
+        ("geometry vertices", buffers.vertices.buffer()),
+        ("geometry indices", buffers.indices.buffer()),
+        ("lines and points", buffers.primitives.buffer()),
+        ("instances", buffers.instances.buffer()),
+        ("chunks", buffers.chunks.buffer()),
+        ("ring offsets", buffers.ring_offsets.buffer()),
+        ("gathered ranges", buffers.gathered.buffer()),
+    ]
+    .into_iter()
+    .find_map(|(name, buffer)| {
+        let size = buffer.map_or(0, |b| b.size());
+        (size > limit).then_some((name, size))
+    });
+    if let Some((name, size)) = too_large {
+        if !*warned {
+            error!(
+                "bevy_sherwood: the forest's {name} take {size} bytes, more than this device binds at once ({limit}): the forest is not drawn. Fewer or smaller tree models (for group impostors: a lower GroupSettings::max_vertices) bring it back."
+            );
+            *warned = true;
+        }
+        commands.remove_resource::<ForestBindGroups>();
+        return;
+    }
+    *warned = false;
     commands.insert_resource(ForestBindGroups {
         view: device.create_bind_group(
             "sherwood_forest_view",
