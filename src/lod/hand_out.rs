@@ -307,55 +307,64 @@ pub(super) fn hand_out_time(
                     let view = frame.view;
                     let group_lists = &mut frame.group_lists;
                     // A group impostor's search: its trunk and leaves each given `fraction`
-                    // of their full detail's time.
-                    let group_search =
-                        |node: usize, fraction: f32, list: &mut TreeDrawList| -> select::Selected {
-                            let (Some(g), Some(view)) =
-                                (impostors.nodes.get(node).and_then(Option::as_ref), view)
-                            else {
-                                return select::Selected::default();
-                            };
-                            let Some(m) = models.get(&g.model) else {
-                                return select::Selected::default();
-                            };
-                            let depth = |at: Vec3| view.depth(g.origin + at).max(MIN_DEPTH);
-                            let tree_view = select::TreeView {
-                                scale: 1.0,
-                                trunk_depth: depth(m.trunk_area_center),
-                                projection: view.projection(),
-                            };
-                            let trunk = |time: f32, list: &mut TreeDrawList| {
-                                if tclod {
-                                    select::trunk_tclod(
-                                        m,
-                                        &tree_view,
-                                        &costs,
-                                        budget.line_widths,
-                                        time,
-                                        list,
-                                    )
-                                } else {
-                                    select::trunk_tc(m, &tree_view, &costs, time, list)
-                                }
-                            };
-                            let leaves = |time: f32, list: &mut TreeDrawList| {
-                                select::leaves_at_depth(
+                    // of their full detail's time (`fulls`, searched when not given);
+                    // what it draws, and the full details' times.
+                    let group_search = |node: usize,
+                                        fraction: f32,
+                                        fulls: Option<(f32, f32)>,
+                                        list: &mut TreeDrawList|
+                     -> (select::Selected, (f32, f32)) {
+                        let (Some(g), Some(view)) =
+                            (impostors.nodes.get(node).and_then(Option::as_ref), view)
+                        else {
+                            return Default::default();
+                        };
+                        let Some(m) = models.get(&g.model) else {
+                            return Default::default();
+                        };
+                        let depth = |at: Vec3| view.depth(g.origin + at).max(MIN_DEPTH);
+                        let tree_view = select::TreeView {
+                            scale: 1.0,
+                            trunk_depth: depth(m.trunk_area_center),
+                            projection: view.projection(),
+                        };
+                        let trunk = |time: f32, list: &mut TreeDrawList| {
+                            if tclod {
+                                select::trunk_tclod(
                                     m,
                                     &tree_view,
                                     &costs,
-                                    leaf_method,
-                                    depth(m.bounds.center()),
+                                    budget.line_widths,
                                     time,
                                     list,
                                 )
-                            };
-                            let full_trunk = trunk(FULL_DETAIL_TIME, list).cost;
-                            let full_leaves = leaves(FULL_DETAIL_TIME, list).cost;
-                            select::Selected::both(
-                                trunk(full_trunk * fraction, list),
-                                leaves(full_leaves * fraction, list),
+                            } else {
+                                select::trunk_tc(m, &tree_view, &costs, time, list)
+                            }
+                        };
+                        let leaves = |time: f32, list: &mut TreeDrawList| {
+                            select::leaves_at_depth(
+                                m,
+                                &tree_view,
+                                &costs,
+                                leaf_method,
+                                depth(m.bounds.center()),
+                                time,
+                                list,
                             )
                         };
+                        let (full_trunk, full_leaves) = fulls.unwrap_or_else(|| {
+                            (
+                                trunk(FULL_DETAIL_TIME, list).cost,
+                                leaves(FULL_DETAIL_TIME, list).cost,
+                            )
+                        });
+                        let chosen = select::Selected::both(
+                            trunk(full_trunk * fraction, list),
+                            leaves(full_leaves * fraction, list),
+                        );
+                        (chosen, (full_trunk, full_leaves))
+                    };
                     let boxes = culling.as_deref().and_then(|c| c.hierarchy.as_ref());
                     let has_group = |node: usize| impostors.has_group(culling.as_deref(), node);
                     let inputs = HierarchyInputs {
@@ -375,11 +384,13 @@ pub(super) fn hand_out_time(
                             return None;
                         }
                         let scratch = &mut group_scratch;
-                        let full = group_search(node, 1.0, scratch).cost;
+                        let (best, fulls) = group_search(node, 1.0, None, scratch);
+                        let full = best.cost;
                         let mut ladder = [Level::new(0.0, 0.0); LADDER_FRACTIONS.len()];
                         let mut previous_cost = f32::INFINITY;
                         for (j, &fraction) in LADDER_FRACTIONS.iter().enumerate() {
-                            let cost = group_search(node, fraction, scratch)
+                            let cost = group_search(node, fraction, Some(fulls), scratch)
+                                .0
                                 .cost
                                 .min(previous_cost);
                             previous_cost = cost;
@@ -425,7 +436,8 @@ pub(super) fn hand_out_time(
                                 let (entity, list) = &mut group_lists[lists_used];
                                 *entity = g.entity;
                                 lists_used += 1;
-                                let chosen = take(group_search(node as usize, fraction, list));
+                                let chosen =
+                                    take(group_search(node as usize, fraction, None, list).0);
                                 group_counts += g.slot.counts(list);
                                 used += chosen.cost;
                                 truncated += u32::from(chosen.truncated);

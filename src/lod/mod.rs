@@ -18,6 +18,10 @@
 //!   fits its floor plus its share, the remainder passing on; a residue left at the end is
 //!   handed out again to objects below full detail. The search runs inside the hand-out
 //!   because a remainder is only known once the object has chosen.
+//!   With [`StrategyKind::Hierarchical`] the Budget stage instead solves the culling boxes
+//!   in view as a Mason–Blake hierarchy (boxes with group impostors over trees over their
+//!   trunk and leaves, see [`GroupSettings`] and [`HierarchicalCut`]) from last frame's
+//!   cut; the Value stage then values only the trees that cut can reach.
 //! * **Draw lists**: the chosen draw lists are copied into the instances' components;
 //!   invisible instances get empty lists. In `Static` and `Unlimited` mode no time is
 //!   handed out and this stage does all the work.
