@@ -12,6 +12,9 @@
 //! (mean SSIM over 8×8 windows of the luma, 1 = identical), `trees` (trees with at least
 //! `MIN_PIXELS` pixels at full detail), `coverage_mean`, `coverage_p5`, `coverage_min`,
 //! and `below_95` (how many of those trees keep less than 95% of their pixels).
+//!
+//! `quality --sheet OUT.png COLUMNS IMAGE...` instead lays the pictures out at half size,
+//! `COLUMNS` to a row in the order given, as one contact sheet.
 
 #[path = "support/quality.rs"]
 mod quality;
@@ -47,7 +50,45 @@ fn coverage(full: &RgbImage, lod: &RgbImage) -> HashMap<u32, (u32, u32)> {
     trees
 }
 
+/// Lays `images` out at half size, `columns` to a row, into `out`.
+fn contact_sheet(out: &str, columns: &str, images: &[String]) -> Result<String, String> {
+    let columns: u32 =
+        columns.parse().ok().filter(|&c| c > 0).ok_or_else(|| {
+            format!("--sheet: COLUMNS must be a positive number, got {columns:?}")
+        })?;
+    let pictures: Vec<RgbImage> = images
+        .iter()
+        .map(|path| {
+            open(path).map(|i| {
+                image::imageops::resize(
+                    &i,
+                    (i.width() / 2).max(1),
+                    (i.height() / 2).max(1),
+                    image::imageops::FilterType::Triangle,
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let Some(first) = pictures.first() else {
+        return Err("--sheet: no pictures".into());
+    };
+    let (w, h) = (first.width(), first.height());
+    let rows = (pictures.len() as u32).div_ceil(columns);
+    let mut sheet = RgbImage::from_pixel(w * columns, h * rows, image::Rgb([255, 255, 255]));
+    for (i, picture) in pictures.iter().enumerate() {
+        let (x, y) = (i as u32 % columns * w, i as u32 / columns * h);
+        image::imageops::overlay(&mut sheet, picture, i64::from(x), i64::from(y));
+    }
+    sheet.save(out).map_err(|e| format!("{out}: {e}"))?;
+    Ok(format!("wrote {out}"))
+}
+
 fn run(args: &[String]) -> Result<String, String> {
+    if let [flag, out, columns, images @ ..] = args
+        && flag == "--sheet"
+    {
+        return contact_sheet(out, columns, images);
+    }
     let [full, full_id, lod, lod_id] = args else {
         return Err("usage: quality FULL.png FULL-ID.png LOD.png LOD-ID.png".into());
     };

@@ -6,7 +6,7 @@
 # time; every run twice, once as it looks and once in tree-ID colours. The quality
 # example compares each picture with the full-detail one of the same frame (SSIM, and
 # per tree the share of its full-detail pixels still covered); the table goes to
-# docs/quality.md with a contact sheet.
+# docs/quality.md with a contact sheet (docs/quality-sheet.png).
 #
 #   scripts/quality.sh
 #
@@ -123,5 +123,27 @@ for trees in $FORESTS; do
         echo "| $trees | $path | — | unlimited peak | — | $top | | | | | |" >> "$table"
     done
 done
+# The contact sheet: full detail beside every configuration, for the first forest and
+# path at the last frame and the smallest fraction of the peak.
+base="${FORESTS%% *}-${PATHS%% *}"
+fraction=${FRACTIONS%% *}
+target=$(awk -v p="$(peak "$OUT/$base-unlimited.csv")" -v f="$fraction" 'BEGIN { printf "%.1f", p * f }')
+sheet=("$OUT/$base-unlimited-$last.png" "$OUT/$base-static-$last.png")
+labels="full detail, static LOD"
+for config in $CONFIGS; do
+    IFS=: read -r mode strategy <<< "$config"
+    sheet+=("$OUT/$base-$mode-$strategy-$target-$last.png")
+    labels="$labels, $mode $strategy"
+done
+"$quality" --sheet docs/quality-sheet.png 3 "${sheet[@]}"
+{
+    echo
+    echo "## Contact sheet"
+    echo
+    echo "${FORESTS%% *} trees, ${PATHS%% *} path, frame $last, target $target ms ($fraction of the"
+    echo "unlimited peak; static at its own time). Left to right, top to bottom: $labels."
+    echo
+    echo "![The same frame in every configuration](quality-sheet.png)"
+} >> "$table"
 mv "$table" docs/quality.md
 echo "wrote docs/quality.md"
