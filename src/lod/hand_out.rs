@@ -299,7 +299,8 @@ pub(super) fn hand_out_time(
                         times[j] = full * fraction;
                         let cost = search(i, times[j], scratch).cost.min(previous_cost);
                         previous_cost = cost;
-                        ladder[j] = Level::new(cost, values[i] * accuracy(cost, full));
+                        let benefit = oracle::sqrt_benefit(values[i], full, cost) as f32;
+                        ladder[j] = Level::new(cost, benefit);
                     }
                     (ladder, times)
                 };
@@ -395,8 +396,10 @@ pub(super) fn hand_out_time(
                                 .min(previous_cost);
                             previous_cost = cost;
                             // Judged against its trees' full detail, not its own.
-                            ladder[j] =
-                                Level::new(cost, value * accuracy(cost, members_full.max(full)));
+                            ladder[j] = Level::new(
+                                cost,
+                                oracle::sqrt_benefit(value, members_full.max(full), cost) as f32,
+                            );
                         }
                         Some((ladder, LADDER_FRACTIONS))
                     };
@@ -547,16 +550,7 @@ pub(super) fn hand_out_time(
     counts += frame.held_counts;
     let remember = frame.decided_key.is_some();
     if remember {
-        frame.decided.resize(
-            frame.placed.len(),
-            (
-                select::Selected {
-                    cost: -1.0,
-                    ..Default::default()
-                },
-                PrimitiveCounts::default(),
-            ),
-        );
+        frame.decided.resize(frame.placed.len(), None);
     }
     for (t, (tree, list)) in frame.trees.iter().zip(&frame.lists).enumerate() {
         if let Some(info) = frame.infos.get(tree.model as usize) {
@@ -570,17 +564,7 @@ pub(super) fn hand_out_time(
                     frame.tree_parts.get(t),
                 )
             {
-                *slot = if tree.leaf_depth.is_some() {
-                    (*parts, tree_counts)
-                } else {
-                    (
-                        select::Selected {
-                            cost: -1.0,
-                            ..Default::default()
-                        },
-                        PrimitiveCounts::default(),
-                    )
-                };
+                *slot = tree.leaf_depth.is_some().then_some((*parts, tree_counts));
             }
         }
     }
@@ -644,16 +628,6 @@ pub(super) fn hand_out_time(
         select_stage_ms: 0.0,
         target_below_logic,
     };
-}
-
-/// The ladders' benefit model: the share of an object's value a representation costing
-/// `cost` gives, against `full`, the cost of its full detail.
-fn accuracy(cost: f32, full: f32) -> f32 {
-    if full > 0.0 {
-        (cost / full).min(1.0).sqrt()
-    } else {
-        1.0
-    }
 }
 
 /// What [`tree_leaves`] draws with no time: the cost of the leaves' cheapest

@@ -113,6 +113,21 @@ pub(super) struct HierarchicalFrame {
 
 const NONE: u32 = u32::MAX;
 
+/// Whether box `node` is in view, and then whether it is entirely inside (its children
+/// too: culling does not test below a box entirely inside, so `inside` carries it down).
+/// `None` for a box out of view or without trees.
+fn in_view(boxes: &BoxHierarchy, node: usize, inside: bool) -> Option<bool> {
+    if boxes.node_bounds(node).is_empty() {
+        return None;
+    }
+    match boxes.node_visibility(node) {
+        _ if inside => Some(true),
+        NodeVisibility::Full => Some(true),
+        NodeVisibility::Partial => Some(false),
+        NodeVisibility::Outside | NodeVisibility::Untested => None,
+    }
+}
+
 /// What one frame's solve did.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct CutOutcome {
@@ -232,16 +247,14 @@ impl HierarchicalFrame {
                 }
             }
         }
+        // What was drawn: the solver's selection, or the coarsest cut forced over it.
         cut.selection.clear();
-        cut.selection
-            .extend((0..self.hierarchy.len() as NodeId).map(|n| self.lod.selection(n)));
-        if scene_dropped {
-            for (node, selection) in cut.selection.iter_mut().enumerate() {
-                if let Some(&chosen) = self.previous.get(&self.keys[node]) {
-                    *selection = chosen;
-                }
-            }
-        }
+        cut.selection.extend(self.keys.iter().map(|key| {
+            self.previous
+                .get(key)
+                .copied()
+                .unwrap_or(NodeSelection::Hidden)
+        }));
         cut.boxes.clear();
         cut.boxes.extend(self.what.iter().map(|what| match *what {
             What::Box(node) => Some(node),
@@ -288,7 +301,7 @@ impl HierarchicalFrame {
     /// add as trees: those under the boxes in view that [`expands`](Self::expands) opens
     /// down to their trees. The Value stage values only these.
     pub(super) fn needed_instances(
-        &mut self,
+        &self,
         boxes: &BoxHierarchy,
         layout: Option<u64>,
         instances: usize,
@@ -303,15 +316,9 @@ impl HierarchicalFrame {
         }
         let mut stack = vec![(0usize, false, false)];
         while let Some((node, inside, under_group)) = stack.pop() {
-            if boxes.node_bounds(node).is_empty() {
+            let Some(inside) = in_view(boxes, node, inside) else {
                 continue;
-            }
-            let inside = inside
-                || match boxes.node_visibility(node) {
-                    NodeVisibility::Full => true,
-                    NodeVisibility::Partial => false,
-                    NodeVisibility::Outside | NodeVisibility::Untested => continue,
-                };
+            };
             let Some(drawn_as_group) = self.expands(node, under_group, has_group) else {
                 continue;
             };
@@ -450,15 +457,7 @@ impl Builder<'_, '_, '_, '_> {
         inside: bool,
         under_group: bool,
     ) -> Option<Added> {
-        if boxes.node_bounds(node).is_empty() {
-            return None;
-        }
-        let inside = inside
-            || match boxes.node_visibility(node) {
-                NodeVisibility::Full => true,
-                NodeVisibility::Partial => false,
-                NodeVisibility::Outside | NodeVisibility::Untested => return None,
-            };
+        let inside = in_view(boxes, node, inside)?;
         let key = Key::Box(node as u32);
         let has_group = self.inputs.has_group;
         let Some(drawn_as_group) = self.frame.expands(node, under_group, has_group) else {

@@ -181,8 +181,8 @@ pub(super) struct LodFrame {
     stamps: Vec<u32>,
     stamp: u32,
     /// Per instance, the last decision of a far tree (whole tree at one depth): what it
-    /// costs and draws (`cost` < 0: none to keep), for `FrameBudget::far_refresh`.
-    decided: Vec<(select::Selected, crate::draw::PrimitiveCounts)>,
+    /// costs and draws (`None`: none to keep), for `FrameBudget::far_refresh`.
+    decided: Vec<Option<(select::Selected, crate::draw::PrimitiveCounts)>>,
     /// What `decided` is valid for: layout, mode, widths and sizes, refresh.
     decided_key: Option<(
         u64,

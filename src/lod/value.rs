@@ -368,11 +368,11 @@ fn value_trees(
             && center_depth >= UNIFORM_DEPTH_RADII * info.radius * scale;
         if whole
             && !(i as u64 + turn).is_multiple_of(refresh)
-            && let Some((parts, counts)) = decided.get(i).filter(|d| d.0.cost >= 0.0)
+            && let Some((parts, counts)) = decided.get(i).copied().flatten()
         {
             held.push(i as u32);
-            *held_parts = select::Selected::both(*held_parts, *parts);
-            *held_counts += *counts;
+            *held_parts = select::Selected::both(*held_parts, parts);
+            *held_counts += counts;
             continue;
         }
         let mut leaves_value = 0.0;
