@@ -250,6 +250,17 @@ struct Floor {
 
 fn noise_floor(hold: &Run) -> Floor {
     let times: Vec<f64> = hold.frames.iter().map(|f| f.measured_ms).collect();
+    let (whole_cv, window_cv) = variation(&times);
+    Floor {
+        whole_cv,
+        window_cv,
+        stats: Stats::of(&hold.all(), hold.target_ms),
+    }
+}
+
+/// How much frame times vary, percent: the coefficient of variation over all of `times`,
+/// and its median within windows of [`NOISE_WINDOW`] frames.
+fn variation(times: &[f64]) -> (f64, f64) {
     let cv = |v: &[f64]| {
         let s = FrameStats::of(v, 1.0);
         if s.mean > 0.0 {
@@ -260,11 +271,10 @@ fn noise_floor(hold: &Run) -> Floor {
     };
     let mut windows: Vec<f64> = times.chunks_exact(NOISE_WINDOW).map(cv).collect();
     windows.sort_by(f64::total_cmp);
-    Floor {
-        whole_cv: cv(&times),
-        window_cv: windows.get(windows.len() / 2).copied().unwrap_or(0.0),
-        stats: Stats::of(&hold.all(), hold.target_ms),
-    }
+    (
+        cv(times),
+        windows.get(windows.len() / 2).copied().unwrap_or(0.0),
+    )
 }
 
 /// The paper's own numbers (ALGORITHMS.md: paper table 2 = thesis 6.2/6.3, TC without LOD,

@@ -172,19 +172,13 @@ pub fn report(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>>
         }
         if let Some((strategy, hold)) = holds.get(&(*trees, path.clone())) {
             let all: Vec<usize> = (0..hold.frames.len()).collect();
-            let times = &hold.measured;
-            let cv = |v: &[f64]| {
-                let s = FrameStats::of(v, 1.0);
-                100.0 * s.std / s.mean.max(1e-9)
-            };
-            let mut windows: Vec<f64> = times.chunks_exact(25).map(cv).collect();
-            windows.sort_by(f64::total_cmp);
+            let (whole, window) = crate::variation(&hold.measured);
             writeln!(
                 md,
                 "{}\n\nNoise floor ({strategy}, identical frames): frame time varies {:.1}% over the run, {:.1}% (median) within 25-frame windows.\n",
                 row(&format!("noise floor ({strategy})"), hold, &all),
-                cv(times),
-                windows.get(windows.len() / 2).copied().unwrap_or(0.0)
+                whole,
+                window
             )?;
         } else {
             writeln!(md)?;
