@@ -210,13 +210,11 @@ impl HierarchicalFrame {
             built.add_object(i);
         }
 
-        self.seed.clear();
-        self.seed.extend(self.keys.iter().map(|key| {
-            self.previous
-                .get(key)
-                .copied()
-                .unwrap_or(NodeSelection::Hidden)
-        }));
+        // (Taken out and put back to keep its allocation.)
+        let mut seed = core::mem::take(&mut self.seed);
+        seed.clear();
+        seed.extend(self.remembered());
+        self.seed = seed;
         let mut outcome = self
             .lod
             .solve_from(&self.hierarchy, inputs.rendering, &self.seed);
@@ -249,12 +247,7 @@ impl HierarchicalFrame {
         }
         // What was drawn: the solver's selection, or the coarsest cut forced over it.
         cut.selection.clear();
-        cut.selection.extend(self.keys.iter().map(|key| {
-            self.previous
-                .get(key)
-                .copied()
-                .unwrap_or(NodeSelection::Hidden)
-        }));
+        cut.selection.extend(self.remembered());
         cut.boxes.clear();
         cut.boxes.extend(self.what.iter().map(|what| match *what {
             What::Box(node) => Some(node),
@@ -273,6 +266,17 @@ impl HierarchicalFrame {
             solved: outcome,
             scene_dropped,
         }
+    }
+
+    /// Per node of this frame's hierarchy, the selection `previous` holds for it
+    /// (hidden when none).
+    fn remembered(&self) -> impl Iterator<Item = NodeSelection> + '_ {
+        self.keys.iter().map(|key| {
+            self.previous
+                .get(key)
+                .copied()
+                .unwrap_or(NodeSelection::Hidden)
+        })
     }
 
     /// Whether box `node` enters this frame's hierarchy with what is under it (`Some`,
