@@ -14,7 +14,9 @@
 //! and `below_95` (how many of those trees keep less than 95% of their pixels).
 //!
 //! `quality --sheet OUT.png COLUMNS IMAGE...` instead lays the pictures out at half size,
-//! `COLUMNS` to a row in the order given, as one contact sheet.
+//! `COLUMNS` to a row in the order given, as one contact sheet; `quality --map OUT.png
+//! FULL.png LOD.png` writes where the two pictures differ, as the SSIM of each 8×8 window
+//! in false colour (blue: identical, red: unrelated).
 
 #[path = "support/quality.rs"]
 mod quality;
@@ -83,14 +85,37 @@ fn contact_sheet(out: &str, columns: &str, images: &[String]) -> Result<String, 
     Ok(format!("wrote {out}"))
 }
 
+/// The luma's structural similarity of two pictures of the same size.
+fn ssim(full: &RgbImage, lod: &RgbImage) -> Result<image_compare::Similarity, String> {
+    let gray = |i: &RgbImage| image::DynamicImage::ImageRgb8(i.clone()).to_luma8();
+    image_compare::gray_similarity_structure(&Algorithm::MSSIMSimple, &gray(full), &gray(lod))
+        .map_err(|e| format!("SSIM: {e}"))
+}
+
+/// Writes the per-window SSIM of `lod` against `full` into `out` as a colour map.
+fn ssim_map(out: &str, full: &str, lod: &str) -> Result<String, String> {
+    let similarity = ssim(&open(full)?, &open(lod)?)?;
+    similarity
+        .image
+        .to_color_map()
+        .save(out)
+        .map_err(|e| format!("{out}: {e}"))?;
+    Ok(format!("wrote {out} (ssim={:.4})", similarity.score))
+}
+
 fn run(args: &[String]) -> Result<String, String> {
-    if let [flag, out, columns, images @ ..] = args
-        && flag == "--sheet"
-    {
-        return contact_sheet(out, columns, images);
+    match args {
+        [flag, out, columns, images @ ..] if flag == "--sheet" => {
+            return contact_sheet(out, columns, images);
+        }
+        [flag, out, full, lod] if flag == "--map" => return ssim_map(out, full, lod),
+        _ => {}
     }
     let [full, full_id, lod, lod_id] = args else {
-        return Err("usage: quality FULL.png FULL-ID.png LOD.png LOD-ID.png".into());
+        return Err(
+            "usage: quality FULL.png FULL-ID.png LOD.png LOD-ID.png | --sheet OUT.png COLUMNS IMAGE... | --map OUT.png FULL.png LOD.png"
+                .into(),
+        );
     };
     let (full, lod) = (open(full)?, open(lod)?);
     let (full_id, lod_id) = (open(full_id)?, open(lod_id)?);
@@ -101,14 +126,7 @@ fn run(args: &[String]) -> Result<String, String> {
     {
         return Err("the four pictures must have the same size".into());
     }
-    let gray = |i: &RgbImage| image::DynamicImage::ImageRgb8(i.clone()).to_luma8();
-    let ssim = image_compare::gray_similarity_structure(
-        &Algorithm::MSSIMSimple,
-        &gray(&full),
-        &gray(&lod),
-    )
-    .map_err(|e| format!("SSIM: {e}"))?
-    .score;
+    let ssim = ssim(&full, &lod)?.score;
     let mut shares: Vec<f64> = coverage(&full_id, &lod_id)
         .values()
         .filter(|(pixels, _)| *pixels >= MIN_PIXELS)

@@ -13,7 +13,8 @@
 # Without wind, so that both runs of a configuration see the same trees in the same
 # place. Resumable: a run whose pictures exist is skipped; delete results/quality to
 # start over. Override with FORESTS (trees per forest), PATHS, FRAMES (comma-separated
-# measured frames) and FRACTIONS.
+# measured frames), FRACTIONS, CONFIGS, OUT (the runs' directory), DOCS (where the
+# table and the sheet go) and FOREST (the forest example's binary, to compare builds).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -22,11 +23,13 @@ PATHS=${PATHS:-"zigzag linear"}
 FRAMES=${FRAMES:-"90,210"}
 FRACTIONS=${FRACTIONS:-"0.125 0.25 0.5"}
 CONFIGS=${CONFIGS:-"tclod:robin-hood tc:robin-hood tclod:funkhouser tc:triangle-budget"}
-OUT=results/quality
+OUT=${OUT:-results/quality}
+DOCS=${DOCS:-docs}
+mkdir -p "$DOCS"
 mkdir -p "$OUT"
 target_dir=${CARGO_TARGET_DIR:-target}
 cargo build --release --example forest --example quality
-forest="$target_dir/release/examples/forest"
+forest=${FOREST:-"$target_dir/release/examples/forest"}
 quality="$target_dir/release/examples/quality"
 last=$(tr ',' '\n' <<< "$FRAMES" | sort -n | tail -1)
 
@@ -135,7 +138,7 @@ for config in $CONFIGS; do
     sheet+=("$OUT/$base-$mode-$strategy-$target-$last.png")
     labels="$labels, $mode $strategy"
 done
-"$quality" --sheet docs/quality-sheet.png 3 "${sheet[@]}"
+"$quality" --sheet "$DOCS/quality-sheet.png" 3 "${sheet[@]}"
 {
     echo
     echo "## Contact sheet"
@@ -145,5 +148,5 @@ done
     echo
     echo "![The same frame in every configuration](quality-sheet.png)"
 } >> "$table"
-mv "$table" docs/quality.md
-echo "wrote docs/quality.md"
+mv "$table" "$DOCS/quality.md"
+echo "wrote $DOCS/quality.md"

@@ -2,7 +2,8 @@
 //! selection fills, and the pure packing of tree geometry and draw lists into the compact
 //! records the pass uploads (no GPU types here, so it is tested headless).
 //!
-//! The pass draws every primitive kind with one instanced draw per view. Each instance of
+//! The pass draws every primitive kind with one instanced draw per view (points with two:
+//! small squares and larger discs). Each instance of
 //! that draw is a *chunk*: a fixed number of primitives taken from one contiguous range of
 //! one tree instance. A range is cut into as many chunks as it needs; the unused tail of
 //! the last chunk is degenerate. The number of draw calls therefore never depends on the
@@ -441,7 +442,7 @@ pub enum PrimitiveKind {
     LeafTriangles,
     /// Flat screen-space lines.
     Lines,
-    /// Lit screen-space squares.
+    /// Lit screen-space points: squares, or discs from a few pixels on.
     Points,
 }
 
@@ -460,15 +461,6 @@ impl PrimitiveKind {
             Self::TrunkTriangles | Self::LeafTriangles => TRIANGLES_PER_CHUNK,
             Self::Lines => LINES_PER_CHUNK,
             Self::Points => POINTS_PER_CHUNK,
-        }
-    }
-
-    /// Vertices the pass emits per chunk (3 per triangle, 6 per line or point quad).
-    pub const fn vertices_per_chunk(self) -> u32 {
-        match self {
-            Self::TrunkTriangles | Self::LeafTriangles => 3 * TRIANGLES_PER_CHUNK,
-            Self::Lines => 6 * LINES_PER_CHUNK,
-            Self::Points => 6 * POINTS_PER_CHUNK,
         }
     }
 }

@@ -699,9 +699,10 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
 }
 
 /// Forty trees, each drawing all four primitive kinds with its own widths and sizes: still
-/// one instanced draw per kind, whatever the number of trees.
+/// one instanced draw per kind and point shape (squares and discs), whatever the number of
+/// trees.
 #[test]
-fn many_trees_in_every_primitive_kind_take_four_draws() {
+fn many_trees_in_every_primitive_kind_take_one_draw_per_kind_and_point_shape() {
     let model = species("slender");
     let segments = model.segments.len() as u32;
     let leaves = model.leaves.len() as u32;
@@ -723,7 +724,8 @@ fn many_trees_in_every_primitive_kind_take_four_draws() {
                     leaf_triangles: std::iter::once(0..leaves / 2).collect(),
                     leaf_points: vec![PointRun {
                         leaves: leaves / 2..leaves,
-                        size: 1 + i % 3,
+                        // Squares (below 6 pixels) and discs.
+                        size: [1, 2, 3, 9][i as usize % 4],
                     }],
                 };
                 let at = Vec3::new((i % 8) as f32 * 3.0 - 10.5, 0.0, -((i / 8) as f32) * 3.0);
@@ -736,7 +738,7 @@ fn many_trees_in_every_primitive_kind_take_four_draws() {
         },
     );
     assert_eq!(stats.instances, 40, "{stats:?}");
-    assert_eq!(stats.draw_calls_per_view, 4, "{stats:?}");
+    assert_eq!(stats.draw_calls_per_view, 5, "{stats:?}");
     assert!(stats.chunks.iter().all(|&c| c > 4), "{stats:?}");
     assert!(picture.coverage() > 1000, "{} pixels", picture.coverage());
 }

@@ -100,21 +100,23 @@ struct FlatVertex {
     @location(0) @interpolate(flat) color: vec4<f32>,
 }
 
-struct PointVertex {
-    @builtin(position) clip: vec4<f32>,
-    @location(0) @interpolate(flat) color: vec4<f32>,
-    // Where in the point's square, -1..1 on both axes (the disc is the unit circle).
-    @location(1) local: vec2<f32>,
-    // 1: a disc, 0: the whole square.
-    @location(2) @interpolate(flat) round: u32,
-}
+// Circumradius of an octagon of the same area as a `size`-pixel square, over `size`
+// (`2√2 r² = 1`), so that the static LOD's coverage (`area / size²` points) holds for round
+// points too.
+const OCTAGON_PER_SQUARE: f32 = 0.5946036;
 
-// Points of this many pixels and more are discs; smaller ones stay squares (a disc of one
-// or two pixels covers the same pixels, or none).
-const ROUND_FROM_SIZE: u32 = 3u;
-// A disc of the same area as a `size`-pixel square is `size · 2/√π` across, so the static
-// LOD's coverage (`area / size²` points) holds for round points too.
-const DISC_PER_SQUARE: f32 = 1.1283792;
+// Corner `corner` (0..8) of a round point's octagon on the unit circle (`batch.rs` fans
+// the eight corners): round without a `discard`, which would turn off the early depth
+// test. The corners sit off the axes, at 22.5° + k·45°.
+fn octagon_corner(corner: u32) -> vec2<f32> {
+    let c = 0.9238795;
+    let s = 0.3826834;
+    var corners = array<vec2<f32>, 8>(
+        vec2<f32>(c, s), vec2<f32>(s, c), vec2<f32>(-s, c), vec2<f32>(-c, s),
+        vec2<f32>(-c, -s), vec2<f32>(-s, -c), vec2<f32>(s, -c), vec2<f32>(c, -s),
+    );
+    return corners[corner];
+}
 
 // Outside the clip volume on every axis: a triangle made of it covers nothing.
 const DEGENERATE: vec4<f32> = vec4<f32>(2.0, 2.0, 2.0, 1.0);
@@ -193,13 +195,10 @@ fn fs_lit(in: LitVertex, @builtin(front_facing) front: bool) -> @location(0) vec
     return vec4<f32>(blinn_phong(shading, normal, eye_direction(in.world_position)), 1.0);
 }
 
-// Corner `corner` (0..6) of a quad made of two triangles: (end or x, side or y) in {0,1}².
+// Corner `corner` (0..4) of a quad, (end or x, side or y) in {0,1}², counter-clockwise:
+// the quad index buffer (`QUAD_INDICES` in draw.rs) makes its two triangles of them.
 fn quad_corner(corner: u32) -> vec2<f32> {
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
-        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 1.0), vec2<f32>(0.0, 1.0),
-    );
-    return corners[corner];
+    return vec2<f32>(select(0.0, 1.0, corner == 1u || corner == 2u), select(0.0, 1.0, corner >= 2u));
 }
 
 fn viewport_size() -> vec2<f32> {
@@ -210,7 +209,7 @@ fn viewport_size() -> vec2<f32> {
 fn vs_lines(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_index: u32) -> FlatVertex {
     var out: FlatVertex;
     let chunk = chunks[chunk_index];
-    let line = vertex / 6u;
+    let line = vertex / 4u;
     if line >= chunk.count {
         out.clip = DEGENERATE;
         return out;
@@ -243,7 +242,7 @@ fn vs_lines(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_i
         along = vec2<f32>(1.0, 0.0);
     }
     along = normalize(along);
-    let corner = quad_corner(vertex % 6u);
+    let corner = quad_corner(vertex % 4u);
     let across = vec2<f32>(-along.y, along.x) * f32(chunk.param) * (corner.y - 0.5);
     var end = a;
     if corner.x > 0.5 {
@@ -267,11 +266,9 @@ fn vs_lines(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_i
     return out;
 }
 
-@vertex
-fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_index: u32) -> PointVertex {
-    var out: PointVertex;
-    let chunk = chunks[chunk_index];
-    let point = vertex / 6u;
+// Point `point` of the chunk, its corner `offset` pixels from its centre.
+fn point_vertex(chunk: Chunk, point: u32, offset: vec2<f32>) -> FlatVertex {
+    var out: FlatVertex;
     if point >= chunk.count {
         out.clip = DEGENERATE;
         return out;
@@ -285,15 +282,7 @@ fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_
         out.clip = DEGENERATE;
         return out;
     }
-    let corner = quad_corner(vertex % 6u) - vec2<f32>(0.5);
-    var side = f32(chunk.param);
-    out.round = 0u;
-    if chunk.param >= ROUND_FROM_SIZE {
-        side = side * DISC_PER_SQUARE;
-        out.round = 1u;
-    }
-    out.local = corner * 2.0;
-    let offset_ndc = corner * side * 2.0 / viewport_size();
+    let offset_ndc = offset * 2.0 / viewport_size();
     out.clip = vec4<f32>(center.xy + offset_ndc * center.w, center.z, center.w);
     // Leaves are two-sided: light the side facing the eye.
     let to_eye = eye_direction(world);
@@ -305,12 +294,18 @@ fn vs_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_
     return out;
 }
 
-@fragment
-fn fs_points(in: PointVertex) -> @location(0) vec4<f32> {
-    if in.round != 0u && dot(in.local, in.local) > 1.0 {
-        discard;
-    }
-    return in.color;
+@vertex
+fn vs_square_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_index: u32) -> FlatVertex {
+    let chunk = chunks[chunk_index];
+    let offset = (quad_corner(vertex % 4u) - vec2<f32>(0.5)) * f32(chunk.param);
+    return point_vertex(chunk, vertex / 4u, offset);
+}
+
+@vertex
+fn vs_round_points(@builtin(vertex_index) vertex: u32, @builtin(instance_index) chunk_index: u32) -> FlatVertex {
+    let chunk = chunks[chunk_index];
+    let offset = octagon_corner(vertex % 8u) * (f32(chunk.param) * OCTAGON_PER_SQUARE);
+    return point_vertex(chunk, vertex / 8u, offset);
 }
 
 @fragment

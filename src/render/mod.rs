@@ -1,6 +1,7 @@
 //! The forest render pass: trunk triangles, screen-space lines of integer widths, leaf
 //! points of integer sizes and leaf triangles, drawn from each instance's
-//! [`TreeDrawList`] with four instanced draws per view (see [`crate::draw`]).
+//! [`TreeDrawList`] with one instanced draw per primitive kind and view, two for points
+//! (small squares and larger discs; see [`crate::draw`] and `batch.rs`).
 //!
 //! The pass is a system in Bevy's `Core3d` schedule, after the main opaque pass, so it
 //! depth-tests against Bevy's own opaque geometry (reverse-Z) and writes depth for what
@@ -17,6 +18,7 @@
 //! several cameras each view draws the same ranges, with its own line and point widths in
 //! its own pixels.
 
+mod batch;
 pub mod calibrate;
 mod hud;
 
@@ -35,8 +37,8 @@ use bevy::render::{
     render_resource::{
         BindGroup, BindGroupEntries, BindGroupLayoutDescriptor, BindGroupLayoutEntries,
         BufferUsages, CachedRenderPipelineId, ColorTargetState, ColorWrites, CompareFunction,
-        DepthStencilState, Face, FragmentState, MultisampleState, PipelineCache, PrimitiveState,
-        RawBufferVec, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
+        DepthStencilState, FragmentState, IndexFormat, MultisampleState, PipelineCache,
+        PrimitiveState, RawBufferVec, RenderPassDescriptor, RenderPipelineDescriptor, ShaderStages,
         SpecializedRenderPipeline, SpecializedRenderPipelines, StoreOp, TextureFormat, VertexState,
         binding_types::{storage_buffer_read_only_sized, uniform_buffer, uniform_buffer_sized},
     },
@@ -60,6 +62,7 @@ use crate::draw::{
 use crate::instance::{ForestInstances, TreeInstance};
 use crate::tree::{NO_RING, TreeModel, TreeModelsVersion};
 use crate::wind::RingOffsetTable;
+use batch::{CORNER_INDICES, DrawBatch};
 
 /// Name of the pass in Bevy's render diagnostics: its GPU time is published as
 /// `render/sherwood_forest/elapsed_gpu` when `RenderDiagnosticsPlugin` is present.
@@ -82,7 +85,7 @@ pub struct ForestRenderStats {
     pub counts: PrimitiveCounts,
     /// Chunks per primitive kind (trunk triangles, leaf triangles, lines, points).
     pub chunks: [u32; 4],
-    /// Draw calls per view (at most one per primitive kind).
+    /// Draw calls per view (at most one per primitive kind, two for points: squares and discs).
     pub draw_calls_per_view: u32,
     /// Views the pass drew into.
     pub views: u32,
@@ -354,8 +357,10 @@ struct ForestBuffers {
     ring_offsets: RawBufferVec<[f32; 4]>,
     gathered: RawBufferVec<[u32; 2]>,
     light: RawBufferVec<GpuLight>,
-    /// First chunk of each kind in `chunks`, and the end.
-    kind_starts: [u32; 5],
+    /// [`CORNER_INDICES`], for lines and points.
+    corner_indices: RawBufferVec<u16>,
+    /// First chunk of each [`DrawBatch`] in `chunks`, and the end.
+    batch_starts: [u32; DrawBatch::ALL.len() + 1],
 }
 
 impl Default for ForestBuffers {
@@ -370,7 +375,8 @@ impl Default for ForestBuffers {
             ring_offsets: RawBufferVec::new(storage()),
             gathered: RawBufferVec::new(storage()),
             light: RawBufferVec::new(BufferUsages::UNIFORM | BufferUsages::COPY_DST),
-            kind_starts: [0; 5],
+            corner_indices: RawBufferVec::new(BufferUsages::INDEX | BufferUsages::COPY_DST),
+            batch_starts: [0; DrawBatch::ALL.len() + 1],
         }
     }
 }
@@ -404,17 +410,28 @@ fn upload_buffers(
         buffers.primitives.write_buffer(&device, &queue);
         frame.atlas_dirty = false;
     }
+    if buffers.corner_indices.buffer().is_none() {
+        fill(&mut buffers.corner_indices, &CORNER_INDICES);
+        buffers.corner_indices.write_buffer(&device, &queue);
+    }
     fill(&mut buffers.instances, &frame.instances);
     fill(&mut buffers.ring_offsets, &frame.ring_offsets);
     fill(&mut buffers.gathered, &frame.chunks.gathered);
     fill(&mut buffers.light, &[frame.light]);
     let chunks = buffers.chunks.values_mut();
     chunks.clear();
-    for (k, kind) in PrimitiveKind::ALL.into_iter().enumerate() {
-        buffers.kind_starts[k] = chunks.len() as u32;
-        chunks.extend_from_slice(frame.chunks.of(kind));
+    for (b, batch) in DrawBatch::ALL.into_iter().enumerate() {
+        buffers.batch_starts[b] = chunks.len() as u32;
+        let kind = batch.kind();
+        chunks.extend(
+            frame
+                .chunks
+                .of(kind)
+                .iter()
+                .filter(|chunk| DrawBatch::of(kind, chunk) == batch),
+        );
     }
-    buffers.kind_starts[4] = chunks.len() as u32;
+    buffers.batch_starts[DrawBatch::ALL.len()] = chunks.len() as u32;
     if chunks.is_empty() {
         chunks.push(crate::draw::GpuChunk::default());
     }
@@ -425,11 +442,11 @@ fn upload_buffers(
     buffers.chunks.write_buffer(&device, &queue);
 
     if let Ok(mut stats) = mailbox.0.lock() {
-        let s = buffers.kind_starts;
+        let s = buffers.batch_starts;
         *stats = ForestRenderStats {
             instances: frame.instances.len() as u32,
             counts: frame.counts,
-            chunks: [s[1] - s[0], s[2] - s[1], s[3] - s[2], s[4] - s[3]],
+            chunks: PrimitiveKind::ALL.map(|kind| kind_chunks(&s, kind)),
             draw_calls_per_view: s.windows(2).filter(|w| w[1] > w[0]).count() as u32,
             views: views.iter().count() as u32,
             gpu_time_ms: None,
@@ -476,9 +493,19 @@ fn init_pipeline(mut commands: Commands, asset_server: Res<AssetServer>) {
     });
 }
 
+/// Chunks of `kind` among the batches starting at `starts`.
+fn kind_chunks(starts: &[u32], kind: PrimitiveKind) -> u32 {
+    DrawBatch::ALL
+        .iter()
+        .zip(starts.windows(2))
+        .filter(|(batch, _)| batch.kind() == kind)
+        .map(|(_, w)| w[1] - w[0])
+        .sum()
+}
+
 #[derive(Clone, Copy, PartialEq, Eq, Hash)]
 struct PipelineKey {
-    kind: PrimitiveKind,
+    batch: DrawBatch,
     samples: u32,
     format: TextureFormat,
 }
@@ -487,14 +514,9 @@ impl SpecializedRenderPipeline for ForestPipeline {
     type Key = PipelineKey;
 
     fn specialize(&self, key: Self::Key) -> RenderPipelineDescriptor {
-        let (vertex, fragment, cull_mode) = match key.kind {
-            PrimitiveKind::TrunkTriangles => ("vs_triangles", "fs_lit", Some(Face::Back)),
-            PrimitiveKind::LeafTriangles => ("vs_triangles", "fs_lit", None),
-            PrimitiveKind::Lines => ("vs_lines", "fs_flat", None),
-            PrimitiveKind::Points => ("vs_points", "fs_points", None),
-        };
+        let (vertex, fragment, cull_mode) = key.batch.shaders();
         RenderPipelineDescriptor {
-            label: Some(format!("sherwood_forest_{:?}", key.kind).into()),
+            label: Some(format!("sherwood_forest_{:?}", key.batch).into()),
             layout: vec![
                 self.view_layout.clone(),
                 self.geometry_layout.clone(),
@@ -535,9 +557,9 @@ impl SpecializedRenderPipeline for ForestPipeline {
     }
 }
 
-/// The pass's pipelines for one view, per primitive kind.
+/// The pass's pipelines for one view, per [`DrawBatch`].
 #[derive(Component)]
-struct ForestViewPipelines([CachedRenderPipelineId; 4]);
+struct ForestViewPipelines([CachedRenderPipelineId; DrawBatch::ALL.len()]);
 
 fn specialize_pipelines(
     mut commands: Commands,
@@ -550,12 +572,12 @@ fn specialize_pipelines(
         return;
     };
     for (entity, target, msaa) in &views {
-        let ids = PrimitiveKind::ALL.map(|kind| {
+        let ids = DrawBatch::ALL.map(|batch| {
             pipelines.specialize(
                 &cache,
                 &pipeline,
                 PipelineKey {
-                    kind,
+                    batch,
                     samples: msaa.samples(),
                     format: target.main_texture_format(),
                 },
@@ -670,11 +692,12 @@ fn draw_forest(
     mut incomplete: ResMut<crate::cost::DrawIncomplete>,
     mut ctx: RenderContext,
 ) {
-    let starts = buffers.kind_starts;
-    if starts[4] == 0 {
+    let starts = buffers.batch_starts;
+    if starts[DrawBatch::ALL.len()] == 0 {
         return;
     }
-    let Some(bind_groups) = bind_groups else {
+    let (Some(bind_groups), Some(corner_indices)) = (bind_groups, buffers.corner_indices.buffer())
+    else {
         incomplete.0 = true;
         return;
     };
@@ -699,19 +722,23 @@ fn draw_forest(
     pass.set_bind_group(0, &bind_groups.view, &[view_offset.offset]);
     pass.set_bind_group(1, &bind_groups.geometry, &[]);
     pass.set_bind_group(2, &bind_groups.frame, &[]);
-    for (k, kind) in PrimitiveKind::ALL.into_iter().enumerate() {
-        let chunks = starts[k]..starts[k + 1];
+    pass.set_index_buffer(corner_indices.slice(..), IndexFormat::Uint16);
+    for (b, batch) in DrawBatch::ALL.into_iter().enumerate() {
+        let chunks = starts[b]..starts[b + 1];
         if chunks.is_empty() {
             continue;
         }
         // Pipelines compile asynchronously: skip a kind until its pipeline is ready.
-        let Some(pipeline) = cache.get_render_pipeline(pipelines.0[k]) else {
+        let Some(pipeline) = cache.get_render_pipeline(pipelines.0[b]) else {
             // This frame's time is not a real frame's (see `DrawIncomplete`).
             incomplete.0 = true;
             continue;
         };
         pass.set_render_pipeline(pipeline);
-        pass.draw(0..kind.vertices_per_chunk(), chunks);
+        match batch.corners() {
+            (Some(first), count) => pass.draw_indexed(first..first + count, 0, chunks),
+            (None, count) => pass.draw(0..count, chunks),
+        }
     }
     span.end(&mut pass);
 }
