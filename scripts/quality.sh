@@ -2,11 +2,12 @@
 # Image quality at equal time: for each forest and camera path, the full-detail pictures of
 # a few frames (and the unlimited frame times up to them, whose peak sets the targets),
 # then each configuration at 1/8, 1/4 and 1/2 of that peak — TCLOD and TC with Robin Hood,
-# TCLOD with Funkhouser–Séquin, the triangle budget — and the static LOD at its own
-# time; every run twice, once as it looks and once in tree-ID colours. The quality
-# example compares each picture with the full-detail one of the same frame (SSIM, and
-# per tree the share of its full-detail pixels still covered); the table goes to
-# docs/quality.md with a contact sheet (docs/quality-sheet.png).
+# TCLOD with Funkhouser–Séquin and with the hierarchical strategy (group impostors), the
+# triangle budget — and the static LOD at its own time; every run twice, once as it looks
+# and once in tree-ID colours. The quality example compares each picture with the
+# full-detail one of the same frame (SSIM, and per tree the share of its full-detail
+# pixels still covered); the table goes to docs/quality.md with a contact sheet
+# (docs/quality-sheet.png).
 #
 #   scripts/quality.sh
 #
@@ -22,7 +23,7 @@ FORESTS=${FORESTS:-"600 1000"}
 PATHS=${PATHS:-"zigzag linear"}
 FRAMES=${FRAMES:-"90,210"}
 FRACTIONS=${FRACTIONS:-"0.125 0.25 0.5"}
-CONFIGS=${CONFIGS:-"tclod:robin-hood tc:robin-hood tclod:funkhouser tc:triangle-budget"}
+CONFIGS=${CONFIGS:-"tclod:robin-hood tc:robin-hood tclod:funkhouser tclod:hierarchical tc:triangle-budget"}
 OUT=${OUT:-results/quality}
 DOCS=${DOCS:-docs}
 mkdir -p "$DOCS"

@@ -54,10 +54,17 @@ impl FrameSample {
 ///
 /// The measurement [`CostPlugin`](super::CostPlugin) adds with Bevy's render app is one
 /// producer; a test or a custom renderer can push its own.
+///
+/// A renderer that knows its own GPU time also [`push_pass`](FrameSamples::push_pass)es it:
+/// the cost model learns from it which part of the rendering its primitives take, and
+/// which part is fixed (the forest pass does, when Bevy's `RenderDiagnosticsPlugin` is
+/// added and the adapter has timestamp queries).
 #[derive(Resource, Debug, Default)]
 pub struct FrameSamples {
     pending: Vec<FrameSample>,
     arrived: Vec<FrameSample>,
+    pending_passes: Vec<f32>,
+    arrived_passes: Vec<f32>,
 }
 
 impl FrameSamples {
@@ -72,9 +79,23 @@ impl FrameSamples {
         &self.arrived
     }
 
+    /// Queues the GPU time, in seconds, of the pass that draws the budgeted primitives, for
+    /// a recent frame (GPU timings arrive a few frames late, and are not tied to a frame
+    /// number: the cost model pairs each with the latest frame it learned from).
+    pub fn push_pass(&mut self, seconds: f32) {
+        self.pending_passes.push(seconds);
+    }
+
+    /// The pass times that arrived at the start of this update, oldest first.
+    pub fn arrived_passes(&self) -> &[f32] {
+        &self.arrived_passes
+    }
+
     fn deliver(&mut self) {
         self.arrived.clear();
         core::mem::swap(&mut self.arrived, &mut self.pending);
+        self.arrived_passes.clear();
+        core::mem::swap(&mut self.arrived_passes, &mut self.pending_passes);
     }
 }
 

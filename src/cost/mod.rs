@@ -182,6 +182,9 @@ fn learn_costs(
     for sample in samples.arrived() {
         model.learn(sample);
     }
+    for &pass in samples.arrived_passes() {
+        model.learn_pass(pass);
+    }
 }
 
 /// Installs the calibration [`CostSettings::calibration`] chooses, when the choice or the

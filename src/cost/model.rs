@@ -405,6 +405,30 @@ impl CostModel {
         true
     }
 
+    /// Learns from the GPU time of the pass that drew the budgeted primitives (every
+    /// family but the meshes, which Bevy's own passes draw), paired with the latest frame
+    /// learned from: the rendering minus the pass is the fixed part, so the fixed part and
+    /// the primitives' costs stop trading places when the scene's mix hardly changes.
+    /// Returns whether it was learned from: not before a frame was, nor when that frame's
+    /// primitives were predicted below [`MIN_PASS_PART`] of the pass (the pass's own
+    /// overhead would then pass for their cost), nor for a time that is not finite and
+    /// positive.
+    pub fn learn_pass(&mut self, seconds: f32) -> bool {
+        let Some(last) = &self.last else {
+            return false;
+        };
+        if !(seconds.is_finite() && seconds > 0.0) {
+            return false;
+        }
+        let x = pass_regressors(&last.predicted.calibrated);
+        let predicted = self.render.predict(&x);
+        if !(predicted >= MIN_PASS_PART * seconds) {
+            return false;
+        }
+        self.render.learn_part(&x, seconds);
+        true
+    }
+
     /// What has been learned, as numbers to show.
     pub fn learned(&self) -> LearnedCosts {
         let scales = self.family_scales();
@@ -429,6 +453,16 @@ impl CostModel {
             frames_learned: self.frames_learned,
         }
     }
+}
+
+/// A pass time is learned from only when the primitives it drew were predicted to take at
+/// least this share of it.
+pub const MIN_PASS_PART: f32 = 0.25;
+
+/// [`render_regressors`] of what the forest pass draws: no fixed part, no meshes.
+fn pass_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {
+    let [_, triangles, pixels, lines, points, _] = render_regressors(calibrated);
+    [0.0, triangles, pixels, lines, points, 0.0]
 }
 
 fn render_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {

@@ -315,13 +315,35 @@ impl<const N: usize> CostFilter<N> {
         {
             return;
         }
-        let dt = f64::from(dt);
         let noise = f64::from(self.gate.typical()) * core::f64::consts::FRAC_PI_2.sqrt();
-        self.drift(dt, noise * noise);
+        self.drift(f64::from(dt), noise * noise);
+        if let Some(error) = self.correct(x, measured, true) {
+            self.gate.observe(error as f32, dt);
+        }
+    }
+
+    /// Learns that a part of a frame already learned — the regressors `x` names, the
+    /// others 0 — took `measured` seconds: a second measurement of the same frame (the
+    /// forest pass's own GPU time, say, against the whole rendering), which tells the
+    /// parts apart where the whole alone cannot (a fixed part and a per-primitive cost
+    /// rise and fall together when the scene's mix hardly changes). Nothing drifts and
+    /// the typical error is the whole's; an error beyond [`HUBER_ERRORS`] of it always
+    /// counts as at the bound. Ignored like [`learn`](Self::learn)'s bad input.
+    pub fn learn_part(&mut self, x: &[f64; N], measured: f32) {
+        if !(measured.is_finite() && measured > 0.0) || x.iter().any(|v| !v.is_finite()) {
+            return;
+        }
+        self.correct(x, measured, false);
+    }
+
+    /// The filter's measurement update for `x` taking `measured` seconds; returns the
+    /// error it corrected (log of measured over predicted), if it could.
+    fn correct(&mut self, x: &[f64; N], measured: f32, whole: bool) -> Option<f64> {
+        let noise = f64::from(self.gate.typical()) * core::f64::consts::FRAC_PI_2.sqrt();
         let costs = self.costs();
         let base: f64 = costs.iter().zip(x).map(|(c, x)| c * x).sum();
         if base <= 0.0 {
-            return;
+            return None;
         }
         let n = N + 1;
         let error = f64::from(measured).ln() - self.state[0] - base.ln();
@@ -338,11 +360,13 @@ impl<const N: usize> CostFilter<N> {
             0
         };
         let mut variance = noise * noise;
-        if side != 0 && side != self.last_outlier {
+        if side != 0 && (!whole || side != self.last_outlier) {
             // An isolated outlier: as if it were at the bound.
             variance *= (error / bound).powi(2);
         }
-        self.last_outlier = side;
+        if whole {
+            self.last_outlier = side;
+        }
         // K = P h / (h' P h + r); x += K e; P -= K h' P.
         let mut ph = [0.0; MAX_STATE];
         for (i, v) in ph.iter_mut().enumerate().take(n) {
@@ -350,7 +374,7 @@ impl<const N: usize> CostFilter<N> {
         }
         let innovation: f64 = (0..n).map(|i| h[i] * ph[i]).sum::<f64>() + variance;
         if !(innovation.is_finite() && innovation > 0.0) {
-            return;
+            return None;
         }
         for i in 0..n {
             let gain = ph[i] / innovation;
@@ -379,7 +403,7 @@ impl<const N: usize> CostFilter<N> {
                 0.0
             };
         }
-        self.gate.observe(error as f32, dt as f32);
+        Some(error)
     }
 
     /// The random walks over `dt` seconds, for measurements of variance `variance`.
@@ -517,6 +541,47 @@ mod tests {
         for (a, b) in costs.iter().zip(f.costs()) {
             assert!((b / a - 1.0).abs() < 0.03, "{costs:?} → {:?}", f.costs());
         }
+    }
+
+    /// A scene whose mix never changes: the whole alone cannot say how much of it is
+    /// fixed; the part measured on its own can.
+    #[test]
+    fn a_measured_part_tells_a_fixed_cost_from_a_per_primitive_one() {
+        // Truth: 16 ms fixed, 30 ms of primitives. Prior: 40 ms fixed, 6 ms of primitives
+        // (the same whole, so the whole has nothing to correct).
+        let x = [1.0, 0.03];
+        let prior = CostFilter::new([0.04, 0.2], [0.0, 0.01], [1.0, 100.0], 0.25, 30.0);
+        let split = |f: &CostFilter<2>| {
+            let c = f.costs();
+            let speed = f64::from(f.speed());
+            (c[0] * speed, c[1] * x[1] * speed)
+        };
+        let (mut whole_only, mut with_part) = (prior.clone(), prior);
+        for i in 0..200 {
+            // The machine's speed wanders by ±10%.
+            let speed = 1.0 + 0.1 * ((i as f64) * 0.3).sin();
+            let (fixed, primitives) = (0.016 * speed, 0.03 * speed);
+            whole_only.learn(&x, (fixed + primitives) as f32, 0.05);
+            with_part.learn(&x, (fixed + primitives) as f32, 0.05);
+            with_part.learn_part(&[0.0, x[1]], primitives as f32);
+        }
+        let (fixed, primitives) = split(&with_part);
+        assert!(
+            (fixed / 0.016 - 1.0).abs() < 0.15 && (primitives / 0.03 - 1.0).abs() < 0.1,
+            "with the part: fixed {fixed}, primitives {primitives}"
+        );
+        let (fixed, _) = split(&whole_only);
+        assert!(
+            fixed > 0.03,
+            "the whole alone kept the prior's split: fixed {fixed}"
+        );
+        // Bad parts are ignored.
+        let before = with_part.clone();
+        with_part.learn_part(&[0.0, f64::NAN], 0.03);
+        with_part.learn_part(&[0.0, x[1]], f32::NAN);
+        with_part.learn_part(&[0.0, x[1]], -1.0);
+        with_part.learn_part(&[0.0, 0.0], 0.03);
+        assert_eq!(with_part, before);
     }
 
     #[test]

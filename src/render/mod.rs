@@ -176,6 +176,7 @@ fn receive_stats(
     mailbox: Res<StatsMailbox>,
     mut stats: ResMut<ForestRenderStats>,
     store: Option<Res<DiagnosticsStore>>,
+    samples: Option<ResMut<crate::cost::FrameSamples>>,
 ) {
     let Ok(latest) = mailbox.0.lock() else {
         return;
@@ -183,10 +184,15 @@ fn receive_stats(
     let mut latest = latest.clone();
     const GPU_TIME: DiagnosticPath =
         DiagnosticPath::const_new("render/sherwood_forest/elapsed_gpu");
-    latest.gpu_time_ms = store
-        .as_deref()
-        .and_then(|s| s.get(&GPU_TIME))
-        .and_then(bevy::diagnostic::Diagnostic::value);
+    let gpu = store.as_deref().and_then(|s| s.get(&GPU_TIME));
+    latest.gpu_time_ms = gpu.and_then(bevy::diagnostic::Diagnostic::value);
+    // The cost model learns from each new pass time once (the store keeps the latest
+    // until the next arrives).
+    if let (Some(mut samples), Some(gpu_ms)) = (samples, latest.gpu_time_ms)
+        && latest.gpu_time_ms != stats.gpu_time_ms
+    {
+        samples.push_pass((gpu_ms / 1000.0) as f32);
+    }
     stats.set_if_neq(latest);
 }
 
