@@ -422,7 +422,7 @@ impl CostModel {
         }
         let x = pass_regressors(&last.predicted.calibrated);
         let predicted = self.render.predict(&x);
-        if !(predicted >= MIN_PASS_PART * seconds) {
+        if predicted.is_nan() || predicted < MIN_PASS_PART * seconds {
             return false;
         }
         self.render.learn_part(&x, seconds);
