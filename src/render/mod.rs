@@ -184,8 +184,10 @@ fn receive_stats(
     let mut latest = latest.clone();
     const GPU_TIME: DiagnosticPath =
         DiagnosticPath::const_new("render/sherwood_forest/elapsed_gpu");
-    let gpu = store.as_deref().and_then(|s| s.get(&GPU_TIME));
-    latest.gpu_time_ms = gpu.and_then(bevy::diagnostic::Diagnostic::value);
+    latest.gpu_time_ms = store
+        .as_deref()
+        .and_then(|s| s.get(&GPU_TIME))
+        .and_then(bevy::diagnostic::Diagnostic::value);
     // The cost model learns from each new pass time once (the store keeps the latest
     // until the next arrives).
     if let (Some(mut samples), Some(gpu_ms)) = (samples, latest.gpu_time_ms)
