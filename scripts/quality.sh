@@ -26,8 +26,7 @@ FRACTIONS=${FRACTIONS:-"0.125 0.25 0.5"}
 CONFIGS=${CONFIGS:-"tclod:robin-hood tc:robin-hood tclod:funkhouser tclod:hierarchical tc:triangle-budget"}
 OUT=${OUT:-results/quality}
 DOCS=${DOCS:-docs}
-mkdir -p "$DOCS"
-mkdir -p "$OUT"
+mkdir -p "$OUT" "$DOCS"
 target_dir=${CARGO_TARGET_DIR:-target}
 cargo build --release --example forest --example quality
 forest=${FOREST:-"$target_dir/release/examples/forest"}

@@ -310,12 +310,10 @@ impl<const N: usize> CostFilter<N> {
     /// Times that are not finite and positive, or a regressor that is not finite, are
     /// ignored.
     pub fn learn(&mut self, x: &[f64; N], measured: f32, dt: f32) {
-        if !(measured.is_finite() && measured > 0.0 && dt.is_finite() && dt > 0.0)
-            || x.iter().any(|v| !v.is_finite())
-        {
+        if !(usable(x, measured) && dt.is_finite() && dt > 0.0) {
             return;
         }
-        let noise = f64::from(self.gate.typical()) * core::f64::consts::FRAC_PI_2.sqrt();
+        let noise = self.noise();
         self.drift(f64::from(dt), noise * noise);
         if let Some(error) = self.correct(x, measured, true) {
             self.gate.observe(error as f32, dt);
@@ -330,16 +328,15 @@ impl<const N: usize> CostFilter<N> {
     /// the typical error is the whole's; an error beyond [`HUBER_ERRORS`] of it always
     /// counts as at the bound. Ignored like [`learn`](Self::learn)'s bad input.
     pub fn learn_part(&mut self, x: &[f64; N], measured: f32) {
-        if !(measured.is_finite() && measured > 0.0) || x.iter().any(|v| !v.is_finite()) {
-            return;
+        if usable(x, measured) {
+            self.correct(x, measured, false);
         }
-        self.correct(x, measured, false);
     }
 
     /// The filter's measurement update for `x` taking `measured` seconds; returns the
     /// error it corrected (log of measured over predicted), if it could.
     fn correct(&mut self, x: &[f64; N], measured: f32, whole: bool) -> Option<f64> {
-        let noise = f64::from(self.gate.typical()) * core::f64::consts::FRAC_PI_2.sqrt();
+        let noise = self.noise();
         let costs = self.costs();
         let base: f64 = costs.iter().zip(x).map(|(c, x)| c * x).sum();
         if base <= 0.0 {
@@ -406,6 +403,12 @@ impl<const N: usize> CostFilter<N> {
         Some(error)
     }
 
+    /// The measurement noise's standard deviation (of the log error) the typical error
+    /// stands for.
+    fn noise(&self) -> f64 {
+        f64::from(self.gate.typical()) * core::f64::consts::FRAC_PI_2.sqrt()
+    }
+
     /// The random walks over `dt` seconds, for measurements of variance `variance`.
     fn drift(&mut self, dt: f64, variance: f64) {
         // With its other parts known, a state whose walk is `r α² / (1 − α)` per frame
@@ -432,6 +435,12 @@ impl<const N: usize> CostFilter<N> {
             self.costs_seconds as f32,
         );
     }
+}
+
+/// Whether a measurement `measured` of regressors `x` can be learned from: a finite,
+/// positive time and finite regressors.
+fn usable<const N: usize>(x: &[f64; N], measured: f32) -> bool {
+    measured.is_finite() && measured > 0.0 && x.iter().all(|v| v.is_finite())
 }
 
 /// The most a [`CostFilter`]'s speed may differ from 1, as a ratio.

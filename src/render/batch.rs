@@ -90,7 +90,7 @@ impl DrawBatch {
         Self::RoundPoints,
     ];
 
-    /// The batch a chunk of `kind` with parameter `param` (a point's size) is drawn in.
+    /// The batch a chunk of `kind` is drawn in (a point chunk's by its size, `param`).
     pub(super) fn of(kind: PrimitiveKind, chunk: &GpuChunk) -> Self {
         match kind {
             PrimitiveKind::TrunkTriangles => Self::TrunkTriangles,

@@ -196,7 +196,7 @@ fn fs_lit(in: LitVertex, @builtin(front_facing) front: bool) -> @location(0) vec
 }
 
 // Corner `corner` (0..4) of a quad, (end or x, side or y) in {0,1}², counter-clockwise:
-// the quad index buffer (`QUAD_INDICES` in draw.rs) makes its two triangles of them.
+// `CORNER_INDICES` (batch.rs) makes its two triangles of them.
 fn quad_corner(corner: u32) -> vec2<f32> {
     return vec2<f32>(select(0.0, 1.0, corner == 1u || corner == 2u), select(0.0, 1.0, corner >= 2u));
 }
