@@ -101,6 +101,7 @@ fn run() -> Result<(), String> {
             render: render[i] as f32 / 1000.0,
             interval: interval[i] as f32 / 1000.0,
             complete: true,
+            ..Default::default()
         });
         if arriving.len() > 2
             && let Some(sample) = arriving.pop_front()

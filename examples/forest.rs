@@ -31,8 +31,9 @@ use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
+use bevy_sherwood::budget::deadline;
 use bevy_sherwood::cost::{
-    CalibrationChoice, CostModel, CostSettings, FrameClock, FrameSample, FrameSamples,
+    CalibrationChoice, CostModel, CostSettings, FrameBound, FrameClock, FrameSample, FrameSamples,
 };
 use bevy_sherwood::draw::Shading;
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestState, ForestTerrain};
@@ -80,6 +81,10 @@ usage: forest [OPTIONS]
                          and write a calibration, then exit
   --out PATH             where --calibrate writes (default
                          assets/calibration/<adapter>.calibration.ron)
+  --vsync-hz H           emulate a display that waits for its vertical blank H times a
+                         second (bevy_sherwood's EmulatedVsyncPlugin; for Xvfb and
+                         headless runs, which have none); the window then presents with
+                         Bevy's default PresentMode::AutoVsync, as an app does
   --width W --height H   window or image size (default 960x540)
   --record FILE.csv      one row per measured frame
   --summary              print one summary line at exit
@@ -105,7 +110,18 @@ The record (--record) has one row per measured frame, times in ms:
                          the render world's time, predicted and measured
   predicted_ms, measured_ms
                          the frame time, predicted and measured (the interval between
-                         this frame's end of rendering and the previous frame's)
+                         this frame's end of rendering and the previous frame's: what
+                         the player sees, waits for the display included)
+  work_ms                the measured frame's work: its frame time less the render
+                         world's waits for the display
+  gpu_ms                 the whole frame's GPU time from timestamps, when available
+  waited_ms              the render world's waits (next swapchain image, vsync, pacer)
+  bound                  what paced the frame: logic, render-cpu or gpu
+  work_target_ms         what the frame's work was aimed at (under vsync the last
+                         vertical blank within the target, less the learned margin)
+  frame_spread           the learned scatter of frame times (std of the log ratio)
+  periods, missed_vblank with --vsync-hz: refresh periods the frame took, and 1 when
+                         that is more than the target allows
   triangles, lines, points
                          primitives selected
   truncated, undrawn     objects drawn below their cheapest, objects not drawn
@@ -190,6 +206,8 @@ struct Options {
     height: u32,
     record: Option<String>,
     summary: bool,
+    /// `--vsync-hz`: the emulated display's refresh rate.
+    vsync_hz: Option<f32>,
     /// The file and the measured frames to take it at.
     screenshot: Option<(String, Vec<u32>)>,
     headless: bool,
@@ -244,6 +262,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         height: 540,
         record: None,
         summary: false,
+        vsync_hz: None,
         screenshot: None,
         headless: false,
         hud: true,
@@ -327,6 +346,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--height" => o.height = number("--height", it.next())?,
             "--record" => o.record = Some(it.next().ok_or("--record needs a file")?.clone()),
             "--summary" => o.summary = true,
+            "--vsync-hz" => o.vsync_hz = Some(number("--vsync-hz", it.next())?),
             "--screenshot" => {
                 screenshot = Some(it.next().ok_or("--screenshot needs a file")?.clone());
             }
@@ -354,6 +374,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
     }
     if !(o.target_ms.is_finite() && o.target_ms > 0.0) {
         return Err("--target-ms must be a positive number".into());
+    }
+    if o.vsync_hz.is_some_and(|hz| !(hz.is_finite() && hz > 0.0)) {
+        return Err("--vsync-hz must be a positive number".into());
     }
     if o.width == 0 || o.height == 0 {
         return Err("--width and --height must be positive".into());
@@ -401,6 +424,10 @@ struct Row {
     drawn: u64,
     /// The ladders' levels shown and switches in the frame.
     ladders: LadderDiagnostics,
+    /// With `--vsync-hz`: refresh periods the frame took (0 without), and whether that is
+    /// more than its target allows.
+    periods: u32,
+    missed_vblank: bool,
     /// The mode and strategy when the row was taken.
     mode: LodMode,
     strategy: StrategyKind,
@@ -459,7 +486,12 @@ pub(crate) fn run(args: Vec<String>) -> AppExit {
         primary_window: (!options.headless).then(|| Window {
             title: "bevy_sherwood forest".into(),
             resolution: WindowResolution::new(options.width, options.height),
-            present_mode: PresentMode::AutoNoVsync,
+            // A measurement without vsync unless one is emulated; with it, Bevy's default.
+            present_mode: if options.vsync_hz.is_some() {
+                PresentMode::AutoVsync
+            } else {
+                PresentMode::AutoNoVsync
+            },
             ..default()
         }),
         exit_condition: if options.headless {
@@ -480,9 +512,14 @@ pub(crate) fn run(args: Vec<String>) -> AppExit {
         app.add_plugins(plugins.disable::<WinitPlugin>())
             .add_plugins(ScheduleRunnerPlugin::run_loop(Duration::ZERO));
         // Without a swapchain nothing holds the CPU back while the GPU queue grows: wait
-        // for each frame's GPU work so that frame times are real.
-        app.sub_app_mut(RenderApp)
-            .add_systems(Render, wait_for_gpu.in_set(RenderSystems::Cleanup));
+        // for each frame's GPU work so that frame times are real. In the `Render` set, so
+        // the wait is measured as the frame's work (which it is: the GPU's).
+        app.sub_app_mut(RenderApp).add_systems(
+            Render,
+            wait_for_gpu
+                .in_set(RenderSystems::Render)
+                .after(bevy::render::renderer::render_system),
+        );
     } else {
         app.add_plugins(plugins);
     }
@@ -517,6 +554,9 @@ pub(crate) fn run(args: Vec<String>) -> AppExit {
     })
     .init_resource::<Run>()
     .add_systems(Startup, setup);
+    if let Some(refresh_hz) = options.vsync_hz {
+        app.add_plugins(EmulatedVsyncPlugin { refresh_hz });
+    }
     if options.id_colors {
         app.insert_resource(ClearColor(Color::BLACK))
             .add_systems(Update, (paint_trees_by_id, hide_terrain));
@@ -994,7 +1034,7 @@ fn measure(
     let run = &mut *run;
     // Each row pairs a frame's selection (its diagnostics) with what was measured of that
     // same frame.
-    if run.diagnostics.len() >= 16 {
+    if run.diagnostics.len() >= 32 {
         run.diagnostics.pop_front();
     }
     run.diagnostics.push_back(lod.clone());
@@ -1007,8 +1047,15 @@ fn measure(
             run.pending.front().filter(|p| p.0 == sample.frame),
             diagnostics,
         ) {
+            let period = options.vsync_hz.map(|hz| 1.0 / hz);
+            let periods = period.map_or(0, |p| deadline::periods_taken(sample.interval, p));
+            let allowed = period.map_or(u32::MAX, |p| {
+                deadline::allowed_periods(diagnostics.target_ms / 1000.0, p)
+            });
             run.rows.push(Row {
                 frame,
+                periods,
+                missed_vblank: periods > allowed,
                 diagnostics: diagnostics.clone(),
                 sample: *sample,
                 pass_ms: stats.gpu_time_ms,
@@ -1042,9 +1089,9 @@ fn measure(
         commands.spawn(target).observe(save_to_disk(file));
     }
     if limit.is_some_and(|n| measured >= n) {
-        // The last frames' measurements are still in the pipeline: wait for them (a
-        // few frames at most).
-        if run.pending.is_empty() || limit.is_some_and(|n| measured >= n + 8) {
+        // The last frames' measurements are still in the pipeline (and their GPU times
+        // behind them): wait for them, a few frames at most.
+        if run.pending.is_empty() || limit.is_some_and(|n| measured >= n + 16) {
             exit.write(if finish(&options, &run.rows) {
                 AppExit::Success
             } else {
@@ -1065,7 +1112,7 @@ fn finish(options: &Options, rows: &[Row]) -> bool {
         None => true,
     };
     if options.summary {
-        let mut line = summary(options.target_ms, rows);
+        let mut line = summary(options.target_ms, rows, options.vsync_hz.is_some());
         if options.meshes > 0 {
             line.push_str(&format!(" levels={}", mean_levels(rows)));
         }
@@ -1138,6 +1185,24 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("measured_render_ms", |r| ms(r.sample.render * 1000.0)),
     ("predicted_ms", |r| ms(r.diagnostics.predicted_frame_ms)),
     ("measured_ms", |r| ms(r.sample.interval * 1000.0)),
+    ("work_ms", |r| ms(r.sample.work_interval() * 1000.0)),
+    ("gpu_ms", |r| {
+        r.sample.gpu.map_or(String::new(), |t| ms(t * 1000.0))
+    }),
+    ("waited_ms", |r| ms(r.sample.waited * 1000.0)),
+    ("bound", |r| {
+        match r.sample.bound() {
+            FrameBound::Logic => "logic",
+            FrameBound::RenderCpu => "render-cpu",
+            FrameBound::Gpu => "gpu",
+            FrameBound::Unknown => "",
+        }
+        .to_owned()
+    }),
+    ("work_target_ms", |r| ms(r.diagnostics.work_target_ms)),
+    ("frame_spread", |r| ratio(r.diagnostics.frame_spread)),
+    ("periods", |r| r.periods.to_string()),
+    ("missed_vblank", |r| u8::from(r.missed_vblank).to_string()),
     ("triangles", |r| r.diagnostics.counts.triangles.to_string()),
     ("lines", |r| r.diagnostics.counts.lines.to_string()),
     ("points", |r| r.diagnostics.counts.points.to_string()),
@@ -1285,14 +1350,32 @@ fn mean_levels(rows: &[Row]) -> String {
     levels_field(&means)
 }
 
-fn summary(target_ms: f32, rows: &[Row]) -> String {
+fn summary(target_ms: f32, rows: &[Row], vsync: bool) -> String {
     let times: Vec<f64> = rows
         .iter()
         .map(|r| f64::from(r.sample.interval * 1000.0))
         .collect();
     let s = FrameStats::of(&times, f64::from(target_ms));
-    format!(
+    let line = format!(
         "summary frames={} target_ms={target_ms} mean_ms={:.3} std_ms={:.3} avg_err={:.4} p95_ms={:.3} p99_ms={:.3} over_pct={:.2}",
         s.frames, s.mean, s.std, s.avg_err, s.p95, s.p99, s.over_pct
-    )
+    );
+    if vsync {
+        let missed = rows.iter().filter(|r| r.missed_vblank).count();
+        let primitives: f64 = rows
+            .iter()
+            .map(|r| {
+                let c = &r.diagnostics.counts;
+                (c.triangles + c.lines + c.points) as f64
+            })
+            .sum();
+        let n = rows.len().max(1) as f64;
+        format!(
+            "{line} missed_vblank_pct={:.2} primitives={:.0}",
+            100.0 * missed as f64 / n,
+            primitives / n
+        )
+    } else {
+        line
+    }
 }

@@ -17,6 +17,7 @@ pub struct SherwoodCorePlugin;
 impl Plugin for SherwoodCorePlugin {
     fn build(&self, app: &mut App) {
         configure_sets(app);
+        crate::display::build(app);
         app.init_resource::<ForestInstances>()
             .register_type::<LodView>()
             .add_systems(

@@ -4,6 +4,7 @@
 pub mod budget;
 pub mod cost;
 pub mod culling;
+pub mod display;
 pub mod draw;
 pub mod ecosystem;
 pub mod instance;
@@ -33,6 +34,9 @@ pub mod prelude {
     pub use crate::budget::ValueFunction;
     pub use crate::cost::{CalibrationChoice, CostModel, CostPlugin, CostSettings};
     pub use crate::culling::{CullingDebug, CullingPlugin};
+    #[cfg(feature = "render")]
+    pub use crate::display::EmulatedVsyncPlugin;
+    pub use crate::display::{DisplayTiming, VsyncMode, VsyncSettings};
     pub use crate::draw::{TreeDrawList, TreeShading};
     pub use crate::ecosystem::{Ecosystem, EcosystemPlugin, Forest};
     pub use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
@@ -57,7 +61,7 @@ pub mod prelude {
 ///
 /// | plugin | what it adds | needs |
 /// |---|---|---|
-/// | [`SherwoodCorePlugin`] | the [`SherwoodSystems`] order, the instance table ([`instance::ForestInstances`]), [`view::LodView`] from cameras | — |
+/// | [`SherwoodCorePlugin`] | the [`SherwoodSystems`] order, the instance table ([`instance::ForestInstances`]), [`view::LodView`] from cameras, the display's timing ([`display::DisplayTiming`]) | — |
 /// | [`cost::CostPlugin`] | frame measurement, the calibration and the learning [`cost::CostModel`] | — |
 /// | [`tree::TreePlugin`] | tree assets: species (`*.species.ron`), saved models, glTF trees | `AssetPlugin` |
 /// | [`ecosystem::EcosystemPlugin`] | ecosystems (`*.ecosystem.ron`): a [`ecosystem::Forest`] spawns its trees and terrain | `AssetPlugin`, `TreePlugin` |

@@ -50,6 +50,7 @@ impl Truth {
             render,
             interval: logic.max(render) + self.sync,
             complete: true,
+            ..Default::default()
         }
     }
 }
@@ -371,4 +372,72 @@ fn incomplete_and_absurd_frames_are_not_learned() {
     let after = app.world().resource::<CostModel>().learned();
     assert_eq!(after.frames_learned, 0);
     assert_eq!(before.scales, after.scales);
+}
+
+/// A machine whose GPU paces the frame: the render world's CPU takes a third of what the
+/// GPU takes, and each frame's GPU time is reported two updates after the rest of its
+/// measurement (as timestamps read back from frames in flight are).
+#[test]
+fn a_gpu_bound_frame_is_predicted_by_its_gpu_time_reported_two_frames_late() {
+    // The largest error of the settled frames with GPU times, the smallest without.
+    let mut final_error = [0.0f32; 2];
+    for (run, report_gpu) in [true, false].into_iter().enumerate() {
+        let (mut app, size) = app(Calibration::default());
+        let mut pending: VecDeque<FrameSample> = VecDeque::new();
+        let mut late_gpu: VecDeque<(u64, f32)> = VecDeque::new();
+        let mut errors = Vec::new();
+        for k in 0..400 {
+            vary(&mut app, size, k);
+            app.update();
+            let frame = app.world().resource::<LodDiagnostics>().frame;
+            let p = *app
+                .world()
+                .resource::<CostModel>()
+                .prediction(frame)
+                .expect("every frame's prediction is kept until it is measured");
+            let gpu = MACHINE.render(&p);
+            let logic = MACHINE.logic(&p);
+            pending.push_back(FrameSample {
+                frame,
+                logic,
+                render: gpu / 3.0,
+                interval: logic.max(gpu) + MACHINE.sync,
+                complete: true,
+                ..Default::default()
+            });
+            late_gpu.push_back((frame, gpu));
+            let mut samples = app.world_mut().resource_mut::<FrameSamples>();
+            if pending.len() > 2 {
+                let sample = pending.pop_front().unwrap();
+                if report_gpu {
+                    samples.push_awaiting_gpu(sample);
+                } else {
+                    samples.push(sample);
+                }
+            }
+            if report_gpu && late_gpu.len() > 4 {
+                let (frame, seconds) = late_gpu.pop_front().unwrap();
+                samples.push_gpu(frame, seconds);
+            }
+            errors.push(relative_error(p.render, gpu));
+        }
+        let settled = errors[300..].iter().copied();
+        final_error[run] = if report_gpu {
+            settled.fold(0.0, f32::max)
+        } else {
+            settled.fold(f32::INFINITY, f32::min)
+        };
+    }
+    assert!(
+        final_error[0] < 0.05,
+        "with its GPU time the rendering is predicted within {}",
+        final_error[0]
+    );
+    // Without it the model can only learn the render world's CPU (a third): the GPU time
+    // is what makes the prediction follow the GPU.
+    assert!(
+        final_error[1] > 0.5,
+        "without its GPU time the prediction came within {} of the GPU",
+        final_error[1]
+    );
 }

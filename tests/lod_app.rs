@@ -383,3 +383,33 @@ fn far_trees_decided_in_turn_keep_their_lists_and_their_time() {
     // Back to every frame.
     assert_eq!(frame(&mut app, budget(1)).held_trees, 0);
 }
+
+/// What the cost model learns from (the selection by family, as the calibration prices
+/// it) is what was drawn: repriced with the model's factors it is the predicted rendering
+/// less the fixed part, at every target and mode. Robin Hood's residue passes offer an
+/// object more time and replace its first choice; only the last may be counted.
+#[test]
+fn the_selection_learned_from_is_the_selection_drawn() {
+    let mut app = app();
+    let mut checked = 0;
+    for mode in [LodMode::Tclod, LodMode::Tc] {
+        for target_ms in [8.0, 20.0, 40.0, 80.0, 160.0] {
+            let d = frame(&mut app, with(mode, target_ms));
+            let (c, k) = (d.calibrated, d.learned.scales);
+            let repriced = 1000.0
+                * (c.triangles * k.triangles
+                    + c.triangle_pixels * k.triangle_pixels
+                    + c.lines * k.lines
+                    + c.points * k.points
+                    + c.meshes * k.meshes);
+            let predicted = d.predicted_render_ms - d.render_fixed_ms;
+            assert!(
+                (repriced - predicted).abs() <= 0.01 * predicted + 1e-3,
+                "{mode:?} at {target_ms} ms: the recorded selection costs {repriced} ms, the \
+                 hand-out's {predicted} ms ({c:?})"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 10);
+}

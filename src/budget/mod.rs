@@ -9,6 +9,8 @@
 //!   [`FunkhouserSequin`] and [`FunkhouserIncremental`] (knapsack optimisers),
 //!   [`TriangleBudget`] (the SRGGE greedy) and [`HierarchicalLod`] (Mason–Blake, which
 //!   also solves a [`LodHierarchy`] of groups with impostors directly).
+//! - [`deadline`]: where a frame's work should end on a display that waits for its
+//!   vertical blank.
 //! - [`oracle`]: the exact optimum of small instances and the LP bound of any instance.
 //!
 //! ```
@@ -28,6 +30,7 @@
 //! assert!(allocations[0].level <= allocations[1].level); // the near trunk gets more detail
 //! ```
 
+pub mod deadline;
 mod frame_model;
 mod funkhouser;
 mod heap;

@@ -10,17 +10,24 @@
 
 mod calibration;
 mod fit;
+#[cfg(feature = "render")]
+mod gpu_frame;
 mod measure;
 pub mod model;
 pub mod online;
+mod pacing;
 mod primitive;
 
 pub use calibration::*;
 pub use fit::*;
-pub use measure::{DrawIncomplete, FrameClock, FrameEnd, FrameSample, FrameSamples, FrameStart};
+pub use measure::{
+    DrawIncomplete, FrameBound, FrameClock, FrameEnd, FrameSample, FrameSamples, FrameStart,
+    GPU_WAIT_UPDATES, IDLE_THRESHOLD, WAIT_THRESHOLD,
+};
 pub use model::{
     CostModel, FrameOverlap, FramePrediction, LearnedCosts, LearnedFrame, LearningRates,
 };
+pub use pacing::MeasuredPacing;
 pub use primitive::{FamilyScales, FamilyTimes, PrimitiveCosts};
 
 use bevy::prelude::*;
@@ -128,6 +135,7 @@ impl Plugin for CostPlugin {
         app.register_type::<CostSettings>()
             .init_resource::<CostSettings>()
             .init_resource::<CostModel>()
+            .init_resource::<MeasuredPacing>()
             .configure_sets(
                 PreUpdate,
                 (
@@ -142,6 +150,7 @@ impl Plugin for CostPlugin {
                 (
                     load_calibration.in_set(CostSystems::LoadCalibration),
                     learn_costs.in_set(CostSystems::Learn),
+                    pacing::observe_pacing.in_set(CostSystems::Learn),
                 ),
             );
         measure::build(app);
@@ -163,6 +172,9 @@ impl Plugin for CostPlugin {
         app.world_mut()
             .resource_mut::<CostModel>()
             .set_prior_overlap(overlap);
+        app.world_mut()
+            .resource_mut::<FrameClock>()
+            .set_pipelined(pipelined);
     }
 }
 

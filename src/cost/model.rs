@@ -35,7 +35,7 @@ use std::collections::VecDeque;
 use bevy::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::online::{CostFilter, PriorRegression, RobustGate};
+use super::online::{CostFilter, LogSpread, PriorRegression, RobustGate};
 use super::{Calibration, FamilyScales, FamilyTimes, FrameSample, PrimitiveCosts};
 
 /// How the main world's logic `L` and the render world's rendering `R` make a frame:
@@ -200,6 +200,7 @@ pub struct CostModel {
     logic: CostFilter<LOGIC_PARAMETERS>,
     overlap: PriorRegression<OVERLAP_PARAMETERS>,
     overlap_gate: RobustGate,
+    frame_spread: LogSpread,
     predictions: VecDeque<FramePrediction>,
     /// Learning starts with the first complete frame that drew something.
     started: bool,
@@ -252,6 +253,11 @@ impl CostModel {
             logic,
             overlap: overlap_regression,
             overlap_gate: RobustGate::new(1e-3, 2e-4),
+            frame_spread: LogSpread::new(
+                FRAME_SPREAD_PRIOR,
+                FRAME_SPREAD_FLOOR,
+                FRAME_SPREAD_SECONDS,
+            ),
             predictions: VecDeque::new(),
             started: false,
             frames_learned: 0,
@@ -379,24 +385,33 @@ impl CostModel {
             self.started = true;
         }
         let dt = sample.interval;
+        // The rendering side is whichever of the render world's CPU work and the GPU took
+        // longer: with frames in flight they overlap, and the longer one paces the frame.
+        let rendering = sample.rendering();
         self.render
-            .learn(&render_regressors(&predicted.calibrated), sample.render, dt);
+            .learn(&render_regressors(&predicted.calibrated), rendering, dt);
         self.logic.learn(
             &[1.0, f64::from(predicted.visible_instances)],
             sample.logic,
             dt,
         );
-        let longer = sample.logic.max(sample.render);
-        let shorter = sample.logic.min(sample.render);
-        let beyond = sample.interval - longer;
-        let error = beyond - self.overlap.predict(&[1.0, f64::from(shorter)]) as f32;
-        self.overlap.update(
-            &[1.0, f64::from(shorter)],
-            f64::from(beyond),
-            f64::from(self.overlap_gate.weight(error)),
-            f64::from(dt),
-        );
-        self.overlap_gate.observe(error, dt);
+        // How the worlds overlap is learned from frames that did not wait for the display:
+        // in those that did, the interval is the display's, not the work's.
+        if !sample.waited_for_display() {
+            let longer = sample.logic.max(rendering);
+            let shorter = sample.logic.min(rendering);
+            let beyond = sample.interval - longer;
+            let error = beyond - self.overlap.predict(&[1.0, f64::from(shorter)]) as f32;
+            self.overlap.update(
+                &[1.0, f64::from(shorter)],
+                f64::from(beyond),
+                f64::from(self.overlap_gate.weight(error)),
+                f64::from(dt),
+            );
+            self.overlap_gate.observe(error, dt);
+        }
+        self.frame_spread
+            .observe(predicted.frame_time, sample.work_interval(), dt);
         self.frames_learned = self.frames_learned.saturating_add(1);
         self.last = Some(LearnedFrame {
             predicted,
@@ -429,6 +444,13 @@ impl CostModel {
         true
     }
 
+    /// How the frames' work scatters around its prediction (`ln(measured / predicted)`
+    /// of [`FrameSample::work_interval`] against [`FramePrediction::frame_time`]): what a
+    /// deadline needs as its margin.
+    pub fn frame_spread(&self) -> &LogSpread {
+        &self.frame_spread
+    }
+
     /// What has been learned, as numbers to show.
     pub fn learned(&self) -> LearnedCosts {
         let scales = self.family_scales();
@@ -454,6 +476,15 @@ impl CostModel {
         }
     }
 }
+
+/// The frame spread before anything is measured: 5% (identical frames vary by 3–11% on
+/// the machines this was measured on).
+pub const FRAME_SPREAD_PRIOR: f32 = 0.05;
+/// The smallest frame spread the model assumes: 1%.
+pub const FRAME_SPREAD_FLOOR: f32 = 0.01;
+/// The frame spread follows about this many seconds of frames: a change of the machine's
+/// noise (measured here as regimes of 5–10 s) is followed within about a second.
+pub const FRAME_SPREAD_SECONDS: f32 = 1.0;
 
 /// A pass time is learned from only when the primitives it drew were predicted to take at
 /// least this share of it.

@@ -200,6 +200,70 @@ impl RobustGate {
     }
 }
 
+/// How far measured times scatter around their predictions: an exponentially weighted
+/// mean and standard deviation of `ln(measured / predicted)` over about
+/// [`LogSpread::seconds`], so a change of the machine's noise is followed within about
+/// that long. Each observation is capped at four deviations from the mean, so that one
+/// stall does not open the spread for the frames after it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogSpread {
+    mean: f32,
+    variance: f32,
+    seconds: f32,
+    floor: f32,
+}
+
+impl LogSpread {
+    /// A spread starting at `sigma` (a log deviation: 0.05 is about 5%), never taken below
+    /// `floor`, following about `seconds` of observations.
+    pub fn new(sigma: f32, floor: f32, seconds: f32) -> Self {
+        Self {
+            mean: 0.0,
+            variance: sigma * sigma,
+            seconds: seconds.max(1e-3),
+            floor,
+        }
+    }
+
+    /// The time constant, seconds.
+    pub fn seconds(&self) -> f32 {
+        self.seconds
+    }
+
+    /// The mean log ratio of measured to predicted (0: unbiased).
+    pub fn mean(&self) -> f32 {
+        self.mean
+    }
+
+    /// The standard deviation of the log ratio (never below the floor).
+    pub fn sigma(&self) -> f32 {
+        self.variance.sqrt().max(self.floor)
+    }
+
+    /// The factor on a prediction that the measurement stays below with `z` standard
+    /// deviations to spare: `exp(mean + z·σ)`.
+    pub fn quantile_factor(&self, z: f32) -> f32 {
+        (self.mean + z * self.sigma()).exp()
+    }
+
+    /// Takes a measurement and its prediction, `dt` seconds after the previous one.
+    /// Non-finite or non-positive times are ignored.
+    pub fn observe(&mut self, predicted: f32, measured: f32, dt: f32) {
+        if !(predicted > 0.0 && measured > 0.0 && predicted.is_finite() && measured.is_finite())
+            || !(dt.is_finite() && dt > 0.0)
+        {
+            return;
+        }
+        let sigma = self.sigma();
+        let x = (measured / predicted).ln();
+        let x = x.clamp(self.mean - 4.0 * sigma, self.mean + 4.0 * sigma);
+        let alpha = 1.0 - (-dt / self.seconds).exp();
+        let d = x - self.mean;
+        self.mean += alpha * d;
+        self.variance = (1.0 - alpha) * (self.variance + alpha * d * d);
+    }
+}
+
 /// The largest state a [`CostFilter`] keeps: the speed and up to seven costs.
 const MAX_STATE: usize = 8;
 
@@ -631,5 +695,54 @@ mod tests {
             "a regressor that stays 0 keeps its prior"
         );
         assert!((f.predict(&[1.0, 0.0]) - 0.03).abs() < 0.001);
+    }
+
+    /// Standard normal numbers from a fixed seed (xorshift and Box–Muller).
+    fn normals() -> impl FnMut() -> f32 {
+        let mut state = 0x2545_F491_4F6C_DD1D_u64;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        move || {
+            let (u, v) = (uniform(), uniform());
+            ((-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()) as f32
+        }
+    }
+
+    #[test]
+    fn the_spread_follows_the_noise_up_and_down() {
+        let mut normal = normals();
+        let mut spread = LogSpread::new(0.05, 0.005, 1.0);
+        let dt = 0.05;
+        let mut run = |spread: &mut LogSpread, sigma: f32, frames: usize| {
+            for _ in 0..frames {
+                let measured = 0.030 * (sigma * normal()).exp();
+                spread.observe(0.030, measured, dt);
+            }
+        };
+        run(&mut spread, 0.10, 200);
+        let noisy = spread.sigma();
+        assert!((0.07..0.13).contains(&noisy), "σ 0.10 learned as {noisy}");
+        // Quiet again: within three seconds the spread has followed most of the way.
+        run(&mut spread, 0.02, 60);
+        let quiet = spread.sigma();
+        assert!(quiet < 0.04, "σ 0.02 after 3 s still {quiet}");
+        assert!(spread.mean().abs() < 0.03);
+        // One stall barely opens it.
+        spread.observe(0.030, 3.0, dt);
+        assert!(
+            spread.sigma() < 2.0 * quiet,
+            "{} after a stall",
+            spread.sigma()
+        );
+        // Nonsense is ignored.
+        let before = spread;
+        spread.observe(f32::NAN, 0.03, dt);
+        spread.observe(0.03, 0.0, dt);
+        spread.observe(0.03, 0.03, f32::INFINITY);
+        assert_eq!(spread, before);
     }
 }

@@ -5,7 +5,7 @@
 use bevy::diagnostic::{Diagnostic, DiagnosticPath, Diagnostics, RegisterDiagnostic};
 use bevy::prelude::*;
 
-use crate::cost::{FamilyTimes, LearnedCosts};
+use crate::cost::{FamilyTimes, FrameBound, LearnedCosts};
 use crate::draw::PrimitiveCounts;
 use crate::schedule::SherwoodSystems;
 
@@ -44,6 +44,30 @@ pub struct LodDiagnostics {
     pub measured_render_ms: f32,
     /// What had been predicted for its frame time, ms.
     pub measured_frame_predicted_ms: f32,
+    /// What this frame's work was aimed at, ms: the target, or under vsync the last
+    /// vertical blank within it less the margin the measured scatter of frame times asks
+    /// for ([`VsyncSettings::missed_vblank_share`](crate::display::VsyncSettings)).
+    pub work_target_ms: f32,
+    /// The display's refresh period under vsync, ms (0 without vsync).
+    pub vsync_period_ms: f32,
+    /// How the frames' work scatters around its prediction: the standard deviation of
+    /// the log ratio (0.05 is about 5%).
+    pub frame_spread: f32,
+    /// The measured frame's work, ms: its frame time less the render world's waits for
+    /// the display (at least the longer of its logic and its rendering).
+    pub measured_work_ms: f32,
+    /// The measured frame's GPU time, ms (0 when the adapter has no timestamp queries).
+    pub measured_gpu_ms: f32,
+    /// What the render world waited for in the measured frame (the next swapchain image,
+    /// a frame pacer), ms.
+    pub measured_waited_ms: f32,
+    /// What paced the measured frame: the logic, the render world's CPU or the GPU.
+    pub measured_bound: FrameBound,
+    /// Refresh periods the measured frame took on screen (0 without vsync).
+    pub measured_periods: u32,
+    /// The measured frame took more refresh periods than the target allows: a missed
+    /// vertical blank.
+    pub missed_vblank: bool,
     /// Rendering time handed out but not used by anyone, ms.
     pub wasted_ms: f32,
     /// What the cost model has learned.
@@ -102,7 +126,7 @@ pub struct LodDiagnostics {
 pub struct LodDiagnosticsPlugin;
 
 /// The published diagnostics, with how each is read off [`LodDiagnostics`].
-const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 22] = [
+const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 27] = [
     (
         DiagnosticPath::const_new("sherwood/visible_objects"),
         "",
@@ -191,6 +215,31 @@ const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 22] = [
         DiagnosticPath::const_new("sherwood/learned_render_speed"),
         "",
         |d| f64::from(d.learned.render_speed),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/measured_work"),
+        "ms",
+        |d| f64::from(d.measured_work_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/measured_gpu"),
+        "ms",
+        |d| f64::from(d.measured_gpu_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/work_target"),
+        "ms",
+        |d| f64::from(d.work_target_ms),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/missed_vblank"),
+        "",
+        |d| f64::from(u8::from(d.missed_vblank)),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/frame_spread"),
+        "",
+        |d| f64::from(d.frame_spread),
     ),
     (
         DiagnosticPath::const_new("sherwood/learned_logic_fixed"),

@@ -18,8 +18,9 @@ use crate::budget::{
     Allocation, BudgetStats, BudgetStrategy, Fit, Level, MIN_DEPTH, ObjectDesc, PreviousSelection,
     oracle,
 };
-use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction};
+use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction, MeasuredPacing};
 use crate::culling::ForestCulling;
+use crate::display::{DisplayTiming, VsyncSettings};
 use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::instance::ForestInstances;
 use crate::tree::TreeModel;
@@ -41,6 +42,9 @@ pub(super) fn hand_out_time(
     impostors: Res<GroupImpostors>,
     culling: Option<Res<ForestCulling>>,
     mut cut: ResMut<HierarchicalCut>,
+    display: Option<Res<DisplayTiming>>,
+    pacing: Option<Res<MeasuredPacing>>,
+    vsync: Option<Res<VsyncSettings>>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -53,7 +57,14 @@ pub(super) fn hand_out_time(
     let overlap = cost_model.overlap();
     let fixed = cost_model.render_fixed();
     let target = (budget.target_ms.max(0.0)) / 1000.0;
-    let available = overlap.rendering_time(logic, target);
+    let aim = super::aim::aim(
+        target,
+        display.as_deref(),
+        pacing.as_deref(),
+        vsync.as_deref(),
+        &cost_model,
+    );
+    let available = overlap.rendering_time(logic, aim.work);
     let target_below_logic =
         available <= 0.0 && budget.mode != LodMode::Unlimited && budget.mode != LodMode::Static;
     if target_below_logic {
@@ -259,24 +270,19 @@ pub(super) fn hand_out_time(
                 // Far trees held this frame keep what they draw; the rest share what
                 // is left (`FrameBudget::far_refresh`).
                 let holding = frame.decided_key.is_some();
-                let tree_parts = &mut frame.tree_parts;
-                tree_parts.clear();
-                if holding {
-                    tree_parts.resize(trees.len(), select::Selected::default());
-                }
-                frame.robin_hood.distribute_with(
+                let choices = &mut frame.object_choices;
+                choices.clear();
+                choices.resize(objects.len(), select::Selected::default());
+                let stats = frame.robin_hood.distribute_with(
                     &frame.values,
                     &frame.complexities,
                     &frame.floors,
                     (rendering - frame.held_parts.cost).max(0.0),
                     |i, given| {
                         let (chosen, ladder_level) = draw(i, given);
-                        let chosen = take(chosen);
-                        if let Some(tree) = tree_parts.get_mut(objects[i].index as usize)
-                            && objects[i].part != Part::Ladder
-                        {
-                            *tree = select::Selected::both(*tree, chosen);
-                        }
+                        // A residue pass offers the object more and replaces this choice:
+                        // only the last one is drawn, priced and learned from.
+                        choices[i] = chosen;
                         // A tree part's level: 0 at full detail, nothing more to buy.
                         let level = ladder_level.unwrap_or(u32::from(!chosen.full));
                         Fit {
@@ -286,7 +292,21 @@ pub(super) fn hand_out_time(
                         }
                     },
                     &mut frame.allocations,
-                )
+                );
+                let tree_parts = &mut frame.tree_parts;
+                tree_parts.clear();
+                if holding {
+                    tree_parts.resize(trees.len(), select::Selected::default());
+                }
+                for (object, chosen) in objects.iter().zip(choices.iter()) {
+                    let chosen = take(*chosen);
+                    if let Some(tree) = tree_parts.get_mut(object.index as usize)
+                        && object.part != Part::Ladder
+                    {
+                        *tree = select::Selected::both(*tree, chosen);
+                    }
+                }
+                stats
             } else {
                 // Ladders: each object's representations at fractions of its full cost.
                 let values = &frame.values;
@@ -590,6 +610,7 @@ pub(super) fn hand_out_time(
         render,
         frame_time,
     });
+    let shown = super::aim::shown(cost_model.last_learned(), target, aim.period);
     let measured = cost_model.last_learned().copied().unwrap_or_default();
     *diagnostics = LodDiagnostics {
         frame: clock.frame,
@@ -606,6 +627,15 @@ pub(super) fn hand_out_time(
         measured_logic_ms: measured.measured.logic * 1000.0,
         measured_render_ms: measured.measured.render * 1000.0,
         measured_frame_predicted_ms: measured.predicted.frame_time * 1000.0,
+        work_target_ms: aim.work * 1000.0,
+        vsync_period_ms: aim.period.unwrap_or(0.0) * 1000.0,
+        frame_spread: cost_model.frame_spread().sigma(),
+        measured_work_ms: shown.work_ms,
+        measured_gpu_ms: shown.gpu_ms,
+        measured_waited_ms: shown.waited_ms,
+        measured_bound: shown.bound,
+        measured_periods: shown.periods,
+        missed_vblank: shown.missed_vblank,
         wasted_ms: wasted * 1000.0,
         overrun_ms: (predicted - rendering).max(0.0) * 1000.0,
         floor_ms: floor * 1000.0,

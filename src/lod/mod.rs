@@ -32,6 +32,7 @@
 //! out in its learned per-primitive costs, and each frame's prediction is recorded with
 //! it ([`CostModel::record`](crate::cost::CostModel::record)) so that it learns from what that frame then measured.
 
+mod aim;
 mod diagnostics;
 mod groups;
 mod hand_out;
@@ -197,6 +198,9 @@ pub(super) struct LodFrame {
     held_counts: crate::draw::PrimitiveCounts,
     /// Per visible tree, what its parts drew this frame (while far trees are held).
     tree_parts: Vec<select::Selected>,
+    /// What each object chose in this frame's hand-out, by object (Robin Hood's residue
+    /// passes offer an object more time and replace its earlier choice).
+    object_choices: Vec<select::Selected>,
     /// Value stages run (which far trees take their turn).
     value_frames: u64,
     /// Whether the Value stage took only the `needed` instances (hierarchical strategy),

@@ -91,9 +91,9 @@ pub struct ForestRenderStats {
     pub views: u32,
     /// GPU time of the pass in milliseconds, summed over views, when Bevy's
     /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries. The
-    /// cost model does not use it: it learns from the render world's whole time
-    /// ([`FrameSample::render`](crate::cost::FrameSample::render)), which also covers
-    /// Bevy's own passes and the wait for the GPU.
+    /// cost model learns from it which part of the rendering the budgeted primitives take
+    /// ([`FrameSamples::push_pass`](crate::cost::FrameSamples::push_pass)); the whole
+    /// frame's GPU time is measured apart ([`FrameSample::gpu`](crate::cost::FrameSample::gpu)).
     pub gpu_time_ms: Option<f64>,
 }
 
