@@ -390,10 +390,16 @@ fn far_trees_decided_in_turn_keep_their_lists_and_their_time() {
 /// object more time and replace its first choice; only the last may be counted.
 #[test]
 fn the_selection_learned_from_is_the_selection_drawn() {
-    let mut app = app();
+    // From outside the forest, far: most trees drawn as points and lines, few triangles,
+    // and time left for residue passes at the middle targets.
+    let mut app = common::default_forest_view(
+        Vec3::new(-160.0, 40.0, -160.0),
+        Vec3::new(100.0, 0.0, 100.0),
+        |_| {},
+    );
     let mut checked = 0;
     for mode in [LodMode::Tclod, LodMode::Tc] {
-        for target_ms in [8.0, 20.0, 40.0, 80.0, 160.0] {
+        for target_ms in [2.0, 4.0, 8.0, 20.0, 40.0, 80.0, 160.0] {
             let d = frame(&mut app, with(mode, target_ms));
             let (c, k) = (d.calibrated, d.learned.scales);
             let repriced = 1000.0
@@ -411,5 +417,5 @@ fn the_selection_learned_from_is_the_selection_drawn() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 10);
+    assert_eq!(checked, 14);
 }
