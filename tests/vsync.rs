@@ -1,9 +1,10 @@
 //! The frame-time promise under vsync, on the real render schedule: a renderer whose work
 //! is synthetic and known (the render world spins for a time set by the frame's own
-//! selection), once with frames free-running and once with every frame held to a vertical
-//! blank (`EmulatedVsyncPlugin`), the same target below the period. The cost model must
-//! learn the same costs from both, and the vsync run must not cut the forest to its
-//! floor. Run with `cargo test --features gpu-tests`.
+//! selection), once with frames free-running, once with every frame held to a vertical
+//! blank (`EmulatedVsyncPlugin`), the same target below the period, and once with the app
+//! idling between updates. The cost model must learn the work, not the waits, and neither
+//! the vsync run nor the idling one may cut the forest. Run with
+//! `cargo test --features gpu-tests`.
 #![cfg(feature = "gpu-tests")]
 
 mod common;
@@ -68,11 +69,24 @@ struct Run {
     predicted: Vec<f32>,
 }
 
-fn run(vsync: bool) -> Run {
+/// How the frames of a run are paced.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Pacing {
+    /// As fast as they go.
+    Free,
+    /// Held to an emulated vertical blank.
+    Vsync,
+    /// The app idles [`IDLE`] between updates by choice (as winit's reactive modes do).
+    Idle,
+}
+
+const IDLE: Duration = Duration::from_millis(40);
+
+fn run(pacing: Pacing) -> Run {
     let mut app = App::new();
     app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
         .add_plugins(SherwoodPlugins);
-    if vsync {
+    if pacing == Pacing::Vsync {
         app.add_plugins(EmulatedVsyncPlugin {
             refresh_hz: 1.0 / PERIOD,
         });
@@ -110,6 +124,9 @@ fn run(vsync: bool) -> Run {
     let mut predicted = Vec::new();
     let mut updates = 0;
     while samples.len() < FRAMES {
+        if pacing == Pacing::Idle {
+            std::thread::sleep(IDLE);
+        }
         app.update();
         updates += 1;
         assert!(updates < 20 * FRAMES, "too few frames were measured");
@@ -163,9 +180,10 @@ fn mean(values: impl Iterator<Item = f32>) -> f32 {
 }
 
 #[test]
-fn under_vsync_the_model_learns_the_work_and_a_target_below_the_period_keeps_its_detail() {
-    let free = run(false);
-    let held = run(true);
+fn under_vsync_or_idling_the_model_learns_the_work_and_keeps_the_detail() {
+    let free = run(Pacing::Free);
+    let held = run(Pacing::Vsync);
+    let idling = run(Pacing::Idle);
     let figures = |name: &str, run: &Run| {
         eprintln!(
             "{name}: render {:.4} predicted {:.4} interval {:.4} waited {:.4} selection {:.4} floor {:.4} gpu {}/{} {:.4} logic {:.4}",
@@ -183,6 +201,7 @@ fn under_vsync_the_model_learns_the_work_and_a_target_below_the_period_keeps_its
     };
     figures("free", &free);
     figures("held", &held);
+    figures("idling", &idling);
 
     // The emulated display really held every frame to its vertical blanks.
     let on_grid = held
@@ -246,5 +265,20 @@ fn under_vsync_the_model_learns_the_work_and_a_target_below_the_period_keeps_its
     assert!(
         spent > 1.5 * floor,
         "with vsync the selection ({spent} ms) sits at its floor ({floor} ms)"
+    );
+
+    // An app idling between updates: the idling is measured apart, not charged.
+    assert!(
+        idling
+            .samples
+            .iter()
+            .all(|s| s.idle >= 0.9 * IDLE.as_secs_f32() && s.waited_for_display()),
+        "idling not measured: {:?}",
+        idling.samples.iter().map(|s| s.idle).collect::<Vec<_>>()
+    );
+    let detail_idling = mean(idling.selections.iter().copied());
+    assert!(
+        detail_idling >= 0.8 * detail_free,
+        "idling between updates, the selection's rendering is {detail_idling} s against {detail_free} s"
     );
 }

@@ -54,12 +54,15 @@ pub struct FrameSample {
     pub resized: bool,
     /// Seconds the main world idled before this frame's update by choice rather than
     /// waited for the render world: winit's reactive update modes, a pacer in the main
-    /// world. Part of [`FrameSample::interval`], not of the work.
+    /// world. Part of [`FrameSample::interval`], not of the work. NaN when unknown (the
+    /// previous frame was not reported): such a frame is not usable.
     pub idle: f32,
 }
 
-/// Waits shorter than this are scheduling noise, not a wait for the display.
-pub const WAIT_THRESHOLD: f32 = 5e-4;
+/// Waits shorter than this are not a wait for the display: Bevy's own `Cleanup` and
+/// `PostCleanup` systems, counted with the waits, take up to about a millisecond in a
+/// debug build.
+pub const WAIT_THRESHOLD: f32 = 2e-3;
 /// Main-world idling shorter than this is the event loop's own overhead (measured at
 /// 0.05–0.3 ms on lavapipe with winit), not an app idling by choice.
 pub const IDLE_THRESHOLD: f32 = 1e-3;
@@ -389,10 +392,11 @@ fn deliver_samples(
                 clock.logic.pop_front();
                 // The main world could have started this frame when the previous one
                 // released it; any later start is idling (the event loop's own overhead
-                // is below `IDLE_THRESHOLD`).
+                // is below `IDLE_THRESHOLD`). Without the previous frame's report the
+                // idling is unknown, and so is the frame's work: NaN, not usable.
                 let idle = previous
                     .filter(|(f, _)| *f + 1 == r.frame)
-                    .map_or(0.0, |(_, at)| {
+                    .map_or(f32::NAN, |(_, at)| {
                         started.saturating_duration_since(at).as_secs_f32()
                     });
                 let sample = FrameSample {
