@@ -249,9 +249,8 @@ impl LogSpread {
     /// Takes a measurement and its prediction, `dt` seconds after the previous one.
     /// Non-finite or non-positive times are ignored.
     pub fn observe(&mut self, predicted: f32, measured: f32, dt: f32) {
-        if !(predicted > 0.0 && measured > 0.0 && predicted.is_finite() && measured.is_finite())
-            || !(dt.is_finite() && dt > 0.0)
-        {
+        let positive = |t: f32| t.is_finite() && t > 0.0;
+        if !(positive(predicted) && positive(measured) && positive(dt)) {
             return;
         }
         let sigma = self.sigma();
