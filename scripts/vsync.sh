@@ -9,7 +9,8 @@
 # Each round runs every configuration once, vsync off and on alternated, so that the
 # machine's slow regimes fall on both; the noise floor (static LOD: identical frames, no
 # vsync) is measured in every round. Results: results/vsync/*.txt, one line per run.
-# Override HZ, ROUNDS, FRAMES, TARGETS (in periods), FOREST_FRACTIONS (the forest
+# Override HZ, ROUNDS, FRAMES, TARGETS (in periods), EXTRA (more user_app flags, e.g.
+# "--msaa 1"), FOREST_FRACTIONS (the forest
 # example's targets as fractions of PEAK_MS, its unlimited peak on the zigzag path;
 # empty: skip the forest example).
 set -euo pipefail
@@ -21,11 +22,14 @@ FRAMES=${FRAMES:-300}
 TARGETS=${TARGETS:-"0.9 1.0"}
 FOREST_FRACTIONS=${FOREST_FRACTIONS:-}
 PEAK_MS=${PEAK_MS:-}
+EXTRA=${EXTRA:-}
 OUT=${OUT:-results/vsync}
 mkdir -p "$OUT"
 target_dir=${CARGO_TARGET_DIR:-target}
 
-cargo build --release --example user_app --example forest
+# CARGO_FLAGS: the build's flags (e.g. --all-features, to reuse a build made so).
+# shellcheck disable=SC2086
+cargo build --release ${CARGO_FLAGS:-} --example user_app --example forest
 user_app="$target_dir/release/examples/user_app"
 forest="$target_dir/release/examples/forest"
 period_ms=$(awk -v hz="$HZ" 'BEGIN { printf "%.3f", 1000 / hz }')
@@ -38,12 +42,15 @@ windowed() {
 
 for round in $(seq 1 "$ROUNDS"); do
     echo "== round $round"
-    windowed "$user_app" --mode static --target-ms "$period_ms" --frames "$FRAMES" \
+    # shellcheck disable=SC2086
+    windowed "$user_app" $EXTRA --mode static --target-ms "$period_ms" --frames "$FRAMES" \
         | tee -a "$OUT/noise.txt"
     for t in $TARGETS; do
         target=$(awk -v p="$period_ms" -v t="$t" 'BEGIN { printf "%.2f", p * t }')
-        windowed "$user_app" --target-ms "$target" --frames "$FRAMES" | tee -a "$OUT/user_app_$t.txt"
-        windowed "$user_app" --target-ms "$target" --frames "$FRAMES" --vsync-hz "$HZ" \
+        # shellcheck disable=SC2086
+        windowed "$user_app" $EXTRA --target-ms "$target" --frames "$FRAMES" | tee -a "$OUT/user_app_$t.txt"
+        # shellcheck disable=SC2086
+        windowed "$user_app" $EXTRA --target-ms "$target" --frames "$FRAMES" --vsync-hz "$HZ" \
             | tee -a "$OUT/user_app_$t.txt"
     done
     if [[ -n "$FOREST_FRACTIONS" ]]; then

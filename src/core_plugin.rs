@@ -8,7 +8,8 @@ use crate::schedule::{SherwoodSystems, configure_sets};
 use crate::view::LodView;
 
 /// Orders the [`SherwoodSystems`] sets, keeps the instance table ([`ForestInstances`]) and
-/// (with the `render` feature) a [`LodView`] on every perspective 3D camera. Every other
+/// (with the `render` feature) a [`LodView`] on the camera the budget follows
+/// ([`BudgetView`](crate::view::BudgetView)). Every other
 /// Sherwood plugin relies on it; [`SherwoodPlugins`](crate::SherwoodPlugins) adds it
 /// first.
 #[derive(Default)]
@@ -20,6 +21,7 @@ impl Plugin for SherwoodCorePlugin {
         crate::display::build(app);
         app.init_resource::<ForestInstances>()
             .register_type::<LodView>()
+            .register_type::<crate::view::BudgetView>()
             .add_systems(
                 PostUpdate,
                 track_instances.in_set(SherwoodSystems::Instances),

@@ -51,7 +51,7 @@ pub mod prelude {
     #[cfg(feature = "render")]
     pub use crate::render::{ForestHud, ForestHudPlugin, ForestRenderPlugin, ForestRenderStats};
     pub use crate::tree::{TreeModel, TreePlugin};
-    pub use crate::view::LodView;
+    pub use crate::view::{BudgetView, LodView};
     pub use crate::wind::{WindPlugin, WindSettings};
     pub use crate::{SherwoodCorePlugin, SherwoodPlugins, SherwoodSystems};
 }

@@ -21,6 +21,7 @@ struct Truth {
     fixed: f32,
     /// Factors on the calibration: triangles, triangle pixels, lines, points.
     scales: [f32; 4],
+    /// The logic after the Budget stage.
     logic_fixed: f32,
     logic_per_instance: f32,
     /// Handing a frame to the render world, seconds.
@@ -43,7 +44,9 @@ impl Truth {
 
     fn sample(&self, p: &FramePrediction, noise: f32) -> FrameSample {
         let render = self.render(p) * noise;
-        let logic = self.logic(p) * noise;
+        // What had run when the budget was handed out was measured then; the rest is the
+        // synthetic machine's.
+        let logic = p.logic_so_far + self.logic(p) * noise;
         FrameSample {
             frame: p.frame,
             logic,
@@ -396,7 +399,7 @@ fn a_gpu_bound_frame_is_predicted_by_its_gpu_time_reported_two_frames_late() {
                 .prediction(frame)
                 .expect("every frame's prediction is kept until it is measured");
             let gpu = MACHINE.render(&p);
-            let logic = MACHINE.logic(&p);
+            let logic = p.logic_so_far + MACHINE.logic(&p);
             pending.push_back(FrameSample {
                 frame,
                 logic,

@@ -419,3 +419,37 @@ fn the_selection_learned_from_is_the_selection_drawn() {
     }
     assert_eq!(checked, 14);
 }
+
+/// The app's game logic, busy this frame.
+#[derive(Resource, Default)]
+struct BusyLogic(std::time::Duration);
+
+fn busy_logic(busy: Res<BusyLogic>) {
+    let start = std::time::Instant::now();
+    while start.elapsed() < busy.0 {
+        std::hint::spin_loop();
+    }
+}
+
+/// A step in the app's own logic (a busy system in `Update`) has already run when the
+/// Budget stage hands out the frame's time: it is in this frame's prediction, not learned
+/// frames later.
+#[test]
+fn a_step_in_the_app_s_logic_is_in_the_same_frame_s_budget() {
+    let mut app = app();
+    app.init_resource::<BusyLogic>()
+        .add_systems(Update, busy_logic);
+    let before = frame(&mut app, with(LodMode::Tclod, 200.0));
+    let step = std::time::Duration::from_millis(60);
+    app.world_mut().resource_mut::<BusyLogic>().0 = step;
+    let after = frame(&mut app, with(LodMode::Tclod, 200.0));
+    assert!(
+        after.logic_so_far_ms >= 60.0 && after.logic_ms >= before.logic_ms + 50.0,
+        "the step's frame predicted {} ms of logic ({} ms so far), the frame before {} ms",
+        after.logic_ms,
+        after.logic_so_far_ms,
+        before.logic_ms
+    );
+    // (How much rendering time it leaves depends on how logic and rendering overlap: with
+    // pipelined rendering, nothing until the logic is the longer of the two.)
+}

@@ -256,6 +256,11 @@ pub struct FrameClock {
 }
 
 impl FrameClock {
+    /// Seconds since this frame's update started (`First`); 0 outside an update.
+    pub fn elapsed(&self) -> f32 {
+        self.started.map_or(0.0, |s| s.elapsed().as_secs_f32())
+    }
+
     /// Tells the clock whether the render world runs beside the main world.
     pub(super) fn set_pipelined(&mut self, pipelined: bool) {
         self.pipelined = pipelined;

@@ -10,7 +10,13 @@
 //!   covered pixel), lines `Λ` and points `Π`, each priced by the calibration; so the
 //!   `θ` are factors on the calibration, which keeps its measured shape across line
 //!   widths and point sizes.
-//! * `L = speed_L · (φ₀ + φ₁·n)` with `n` the visible instances.
+//! * `L = L₀ + speed_L · (φ₀ + φ₁·n)`: the logic `L₀` that already ran when the Budget
+//!   stage hands out the frame's time (measured, this frame: the app's `Update` systems,
+//!   culling, the values), and the rest of the update after it (the hand-out itself, the
+//!   draw lists, whatever the app runs later), learned, with `n` the visible instances. A
+//!   step in the app's logic is so in the same frame's budget. On two cores a busy main
+//!   world also takes a core from a software rasteriser; that contention shows as the
+//!   overlap's serial share `s` below, which is learned.
 //! * `F = max(L, R) + s·min(L, R) + c` ([`FrameOverlap`]): with Bevy's pipelined
 //!   rendering the main world updates the next frame while the render world draws this
 //!   one, so the frame is the longer of the two plus a synchronisation `c` (extraction)
@@ -117,9 +123,9 @@ pub struct LearnedCosts {
     pub mesh_triangle_ns: f32,
     /// Factors on the calibration (speed included), per family.
     pub scales: FamilyScales,
-    /// The main world's logic with nothing visible, ms.
+    /// The main world's logic after the Budget stage with nothing visible, ms.
     pub logic_fixed_ms: f32,
-    /// Logic per visible instance, µs.
+    /// Logic after the Budget stage per visible instance, µs.
     pub logic_per_instance_us: f32,
     /// How much slower the machine renders now than the learned costs say (1: as learned).
     pub render_speed: f32,
@@ -140,8 +146,11 @@ pub struct FramePrediction {
     pub visible_instances: u32,
     /// The selection's rendering time by family, priced by the calibration alone.
     pub calibrated: FamilyTimes,
-    /// Predicted logic, seconds.
+    /// Predicted logic, seconds: what had run when the budget was handed out
+    /// ([`FramePrediction::logic_so_far`]) and the learned rest.
     pub logic: f32,
+    /// The main world's logic measured when the Budget stage ran, seconds.
+    pub logic_so_far: f32,
     /// Predicted rendering (fixed part included), seconds.
     pub render: f32,
     /// Predicted frame time, seconds.
@@ -323,8 +332,9 @@ impl CostModel {
         self.render.predict(&render_regressors(calibrated))
     }
 
-    /// Predicted logic time with `visible_instances` instances in view, seconds.
-    pub fn logic_time(&self, visible_instances: u32) -> f32 {
+    /// Predicted logic time after the Budget stage (the rest of the main world's update)
+    /// with `visible_instances` instances in view, seconds.
+    pub fn logic_after_budget(&self, visible_instances: u32) -> f32 {
         self.logic.predict(&[1.0, f64::from(visible_instances)])
     }
 
@@ -390,9 +400,11 @@ impl CostModel {
         let rendering = sample.rendering();
         self.render
             .learn(&render_regressors(&predicted.calibrated), rendering, dt);
+        // What ran after the hand-out (never taken below a microsecond: a logarithm is
+        // learned).
         self.logic.learn(
             &[1.0, f64::from(predicted.visible_instances)],
-            sample.logic,
+            (sample.logic - predicted.logic_so_far).max(1e-6),
             dt,
         );
         // How the worlds overlap is learned from frames that did not wait for the display:

@@ -10,9 +10,9 @@ use crate::instance::ForestInstances;
 use crate::schedule::SherwoodSystems;
 use crate::tree::{Bounds, TreeModel, TreeModelsVersion};
 
-/// The view culling tests against. Cameras get one automatically from their Bevy
-/// `Frustum` (with the `render` feature); headless apps insert it themselves.
-/// With several, the first one found is used.
+/// The view culling tests against. The camera the budget follows gets one automatically
+/// from its Bevy `Frustum` (with the `render` feature; see
+/// [`BudgetView`](crate::view::BudgetView)); headless apps insert it themselves.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct CullView(pub FrustumPlanes);
 
@@ -102,7 +102,12 @@ impl Plugin for CullingPlugin {
                     .in_set(SherwoodSystems::Cull),
             );
         #[cfg(feature = "render")]
-        app.add_systems(PostUpdate, update_cull_views.before(SherwoodSystems::Cull));
+        app.add_systems(
+            PostUpdate,
+            update_cull_views
+                .after(SherwoodSystems::Instances)
+                .before(SherwoodSystems::Cull),
+        );
     }
 
     fn finish(&self, app: &mut App) {
@@ -227,6 +232,9 @@ fn cull_forest(
     }
 }
 
+/// Keeps a [`CullView`] on the camera the budget follows (the one with a
+/// [`LodView`](crate::view::LodView), see [`BudgetView`](crate::view::BudgetView)) and on
+/// no other camera.
 #[cfg(feature = "render")]
 fn update_cull_views(
     mut commands: Commands,
@@ -235,14 +243,21 @@ fn update_cull_views(
             Entity,
             &bevy::camera::primitives::Frustum,
             Option<&CullView>,
+            Has<crate::view::LodView>,
         ),
         With<Camera3d>,
     >,
 ) {
-    for (entity, frustum, view) in &cameras {
+    for (entity, frustum, view, followed) in &cameras {
+        if !followed {
+            if view.is_some() {
+                commands.entity(entity).try_remove::<CullView>();
+            }
+            continue;
+        }
         let planes = FrustumPlanes(frustum.0.half_spaces.map(|h| h.normal_d()));
         if view.is_none_or(|v| v.0 != planes) {
-            commands.entity(entity).insert(CullView(planes));
+            commands.entity(entity).try_insert(CullView(planes));
         }
     }
 }

@@ -22,8 +22,11 @@ pub struct LodDiagnostics {
     /// Visible tree instances: those culling found in view, or with the hierarchical
     /// strategy those its cut reached (the others are drawn by group impostors).
     pub visible_instances: u32,
-    /// Predicted logic time (the main world's update), ms.
+    /// Predicted logic time (the main world's update), ms: what had run when the budget
+    /// was handed out ([`LodDiagnostics::logic_so_far_ms`]) and the learned rest.
     pub logic_ms: f32,
+    /// The main world's logic measured when the budget was handed out, ms.
+    pub logic_so_far_ms: f32,
     /// Rendering time handed out to the objects, ms (the fixed part excluded).
     pub render_budget_ms: f32,
     /// Predicted fixed part of the rendering, ms.

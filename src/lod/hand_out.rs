@@ -53,7 +53,9 @@ pub(super) fn hand_out_time(
         .primitive_costs()
         .within_viewport(frame.viewport_pixels);
     let visible_instances = (frame.trees.len() + frame.held.len()) as u32;
-    let logic = cost_model.logic_time(visible_instances);
+    // This frame's logic so far is known: only the rest of the update is predicted.
+    let logic_so_far = clock.elapsed();
+    let logic = logic_so_far + cost_model.logic_after_budget(visible_instances);
     let overlap = cost_model.overlap();
     let fixed = cost_model.render_fixed();
     let target = (budget.target_ms.max(0.0)) / 1000.0;
@@ -607,6 +609,7 @@ pub(super) fn hand_out_time(
         visible_instances,
         calibrated,
         logic,
+        logic_so_far,
         render,
         frame_time,
     });
@@ -618,6 +621,7 @@ pub(super) fn hand_out_time(
         visible_objects: frame.objects.len() as u32,
         visible_instances,
         logic_ms: logic * 1000.0,
+        logic_so_far_ms: logic_so_far * 1000.0,
         render_budget_ms: rendering * 1000.0,
         render_fixed_ms: fixed * 1000.0,
         predicted_render_ms: render * 1000.0,

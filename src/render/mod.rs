@@ -16,7 +16,8 @@
 //!
 //! The [`TreeDrawList`] describes one selection per instance, shared by every view: with
 //! several cameras each view draws the same ranges, with its own line and point widths in
-//! its own pixels.
+//! its own pixels. The forest is on render layer 0: a camera whose `RenderLayers` leave
+//! it out (a minimap) does not draw it.
 
 mod batch;
 pub mod calibrate;
@@ -574,12 +575,26 @@ fn specialize_pipelines(
     pipeline: Option<Res<ForestPipeline>>,
     mut pipelines: ResMut<SpecializedRenderPipelines<ForestPipeline>>,
     cache: Res<PipelineCache>,
-    views: Query<(Entity, &ViewTarget, &Msaa), With<ExtractedView>>,
+    views: Query<
+        (
+            Entity,
+            &ViewTarget,
+            &Msaa,
+            Option<&bevy::camera::visibility::RenderLayers>,
+        ),
+        With<ExtractedView>,
+    >,
 ) {
     let Some(pipeline) = pipeline else {
         return;
     };
-    for (entity, target, msaa) in &views {
+    let forest_layers = bevy::camera::visibility::RenderLayers::default();
+    for (entity, target, msaa, layers) in &views {
+        // The forest is on layer 0: a camera that leaves it out does not draw it.
+        if layers.is_some_and(|l| !l.intersects(&forest_layers)) {
+            commands.entity(entity).remove::<ForestViewPipelines>();
+            continue;
+        }
         let ids = DrawBatch::ALL.map(|batch| {
             pipelines.specialize(
                 &cache,
