@@ -71,6 +71,7 @@ fn run() -> Result<(), String> {
         col("cal_points_ms")?,
         // Records of scenes without ladder entities have no mesh column.
         col("cal_meshes_ms").unwrap_or_else(|_| vec![0.0; visible.len()]),
+        col("cal_mesh_pixels_ms").unwrap_or_else(|_| vec![0.0; visible.len()]),
     ];
     let mut model = CostModel::new(calibration.scaled(scale), FrameOverlap::PIPELINED, rates);
     let mut arriving = VecDeque::new();
@@ -82,6 +83,7 @@ fn run() -> Result<(), String> {
             lines: family[2][i] as f32 / 1000.0,
             points: family[3][i] as f32 / 1000.0,
             meshes: family[4][i] as f32 / 1000.0,
+            mesh_pixels: family[5][i] as f32 / 1000.0,
         };
         // A record has no logic measured at the budget: the whole logic is predicted.
         let logic_time = model.logic_after_budget(visible[i] as u32);

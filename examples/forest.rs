@@ -147,8 +147,10 @@ The record (--record) has one row per measured frame, times in ms:
                          learned logic
   sync_ms, serial        learned overlap: frame = max(logic, render) + serial ·
                          min(logic, render) + sync
-  cal_meshes_ms          the ladder meshes' rendering as the calibration prices it
-  mesh_draw_us, mesh_triangle_ns
+  cal_meshes_ms, cal_mesh_pixels_ms
+                         the meshes on Bevy's path (ladder levels and the app's own) as
+                         the calibration prices them: per draw and triangle, per pixel
+  mesh_draw_us, mesh_triangle_ns, mesh_pixel_ns
                          learned costs of Bevy's mesh path (per draw, per triangle)
   ladder_switches        ladder entities whose shown level changed in the frame
   ladder_levels          ladder entities in view showing each level, best first (a/b/..)
@@ -1256,6 +1258,12 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     }),
     ("mesh_draw_us", |r| {
         ratio(r.diagnostics.learned.mesh_draw_us)
+    }),
+    ("cal_mesh_pixels_ms", |r| {
+        ms(r.diagnostics.calibrated.mesh_pixels * 1000.0)
+    }),
+    ("mesh_pixel_ns", |r| {
+        ratio(r.diagnostics.learned.mesh_pixel_ns)
     }),
     ("mesh_triangle_ns", |r| {
         ratio(r.diagnostics.learned.mesh_triangle_ns)

@@ -14,8 +14,12 @@
 //! Flags: `--vsync-hz H` (emulate a display refreshing H times a second; default none),
 //! `--target-ms T` (default 50), `--mode tclod|tc|static|unlimited` (default tclod),
 //! `--frames N` measured frames (default 300), `--warmup N` (default 100), `--width W`
-//! `--height H` (default 960×540), `--msaa 1|2|4|8` (default 4, Bevy's). Prints one
-//! `user_app ...` line.
+//! `--height H` (default 960×540), `--msaa 1|2|4|8` (default 4, Bevy's), `--props` (the
+//! `gltf_props` example's 40 glTF rocks with `_LOD` levels in front of the forest),
+//! `--step-ms S` (S ms of game logic in `Update` from a third of the frames to two
+//! thirds), `--spawn-spheres N` (N PBR spheres spawned a third of the way through); the
+//! line reports the frames over 1.1 × target among the 20 after each event.
+//! Prints one `user_app ...` line.
 
 use bevy::prelude::*;
 use bevy::window::WindowResolution;
@@ -33,6 +37,14 @@ struct Options {
     height: u32,
     /// `--msaa N`: the camera's multisampling (Bevy's default: 4).
     msaa: u32,
+    /// `--props`: the 40 glTF rocks with `_LOD` levels of the `gltf_props` example.
+    props: bool,
+    /// `--step-ms S`: game logic (a busy `Update` system) of S ms from a third of the
+    /// measured frames to two thirds.
+    step_ms: f32,
+    /// `--spawn-spheres N`: N PBR spheres spawned in front of the camera a third of the
+    /// way through.
+    spawn_spheres: u32,
 }
 
 fn parse(args: &[String]) -> Result<Options, String> {
@@ -45,6 +57,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
         width: 960,
         height: 540,
         msaa: 4,
+        props: false,
+        step_ms: 0.0,
+        spawn_spheres: 0,
     };
     let mut it = args.iter();
     while let Some(flag) = it.next() {
@@ -58,6 +73,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--width" => o.width = number(value()?)? as u32,
             "--height" => o.height = number(value()?)? as u32,
             "--msaa" => o.msaa = number(value()?)? as u32,
+            "--props" => o.props = true,
+            "--step-ms" => o.step_ms = number(value()?)?,
+            "--spawn-spheres" => o.spawn_spheres = number(value()?)? as u32,
             "--mode" => {
                 o.mode = match value()?.as_str() {
                     "tclod" => LodMode::Tclod,
@@ -120,6 +138,7 @@ fn main() -> AppExit {
     })
     .init_resource::<Measured>()
     .add_systems(Startup, setup)
+    .add_systems(Update, (game_logic, spawn_spheres))
     .add_systems(Last, measure);
     if let Some(refresh_hz) = options.vsync_hz {
         app.add_plugins(EmulatedVsyncPlugin { refresh_hz });
@@ -129,6 +148,13 @@ fn main() -> AppExit {
 
 fn setup(mut commands: Commands, server: Res<AssetServer>, options: Res<Options>) {
     commands.spawn(Forest(server.load("forests/default.ecosystem.ron")));
+    if options.props {
+        commands.spawn((
+            WorldAssetRoot(server.load(GltfAssetLabel::Scene(0).from_asset("props/rocks.glb"))),
+            LadderFromLodNames,
+            Transform::from_xyz(8.0, 0.5, 8.0),
+        ));
+    }
     let msaa = match options.msaa {
         1 => Msaa::Off,
         2 => Msaa::Sample2,
@@ -144,6 +170,50 @@ fn setup(mut commands: Commands, server: Res<AssetServer>, options: Res<Options>
         DirectionalLight::default(),
         Transform::from_xyz(1.0, 3.0, 2.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
+}
+
+/// The measured frames at which the events start and (the logic step) end.
+fn events(options: &Options) -> (usize, usize) {
+    (options.frames / 3, 2 * options.frames / 3)
+}
+
+fn game_logic(options: Res<Options>, measured: Res<Measured>) {
+    let (start, end) = events(&options);
+    let frame = measured.periods.len();
+    if options.step_ms > 0.0 && (start..end).contains(&frame) {
+        let begun = std::time::Instant::now();
+        while begun.elapsed().as_secs_f32() * 1000.0 < options.step_ms {
+            std::hint::spin_loop();
+        }
+    }
+}
+
+fn spawn_spheres(
+    mut commands: Commands,
+    options: Res<Options>,
+    measured: Res<Measured>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut done: Local<bool>,
+) {
+    if *done || options.spawn_spheres == 0 || measured.periods.len() != events(&options).0 {
+        return;
+    }
+    *done = true;
+    let mesh = meshes.add(Sphere::new(1.0).mesh().uv(64, 32));
+    let material = materials.add(Color::srgb(0.8, 0.3, 0.2));
+    for k in 0..options.spawn_spheres {
+        let at = Vec3::new(
+            -2.0 + 2.5 * (k % 5) as f32,
+            8.0 + 2.5 * (k / 5 % 4) as f32,
+            4.0 + 3.0 * (k / 20) as f32,
+        );
+        commands.spawn((
+            Mesh3d(mesh.clone()),
+            MeshMaterial3d(material.clone()),
+            Transform::from_translation(at),
+        ));
+    }
 }
 
 fn measure(
@@ -196,8 +266,25 @@ fn measure(
         .filter(|&&t| t > 1.1 * f64::from(options.target_ms))
         .count();
     let primitives = measured.primitives.iter().sum::<u64>() as f64 / n;
+    let swing = {
+        let sd = measured
+            .primitives
+            .iter()
+            .map(|&p| (p as f64 - primitives).powi(2))
+            .sum::<f64>()
+            / n;
+        sd.sqrt() / primitives.max(1.0)
+    };
+    let (start, end) = events(&options);
+    let over_after = |from: usize| {
+        ms.iter()
+            .skip(from)
+            .take(20)
+            .filter(|&&t| t > 1.1 * f64::from(options.target_ms))
+            .count()
+    };
     println!(
-        "user_app vsync_hz={} target_ms={} frames={} mean_ms={mean:.2} std_over_mean={:.4} over_1.1_pct={:.2} missed_vblank_pct={:.2} primitives={primitives:.0} spread={:.4} work_target_ms={:.2} logic_ms={:.2} render_ms={:.2} floor_ms={:.2}",
+        "user_app vsync_hz={} target_ms={} frames={} mean_ms={mean:.2} std_over_mean={:.4} over_1.1_pct={:.2} missed_vblank_pct={:.2} primitives={primitives:.0} spread={:.4} work_target_ms={:.2} logic_ms={:.2} render_ms={:.2} floor_ms={:.2} primitives_swing={swing:.4} over_after_start={} over_after_end={}",
         options.vsync_hz.unwrap_or(0.0),
         options.target_ms,
         ms.len(),
@@ -209,6 +296,8 @@ fn measure(
         measured.logic / n as f32,
         measured.render / n as f32,
         measured.floor / n as f32,
+        over_after(start),
+        over_after(end),
     );
     exit.write(AppExit::Success);
 }

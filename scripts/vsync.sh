@@ -12,7 +12,8 @@
 # Override HZ, ROUNDS, FRAMES, TARGETS (in periods), EXTRA (more user_app flags, e.g.
 # "--msaa 1"), FOREST_FRACTIONS (the forest
 # example's targets as fractions of PEAK_MS, its unlimited peak on the zigzag path;
-# empty: skip the forest example).
+# empty: skip the forest example) and FOREST_FLAGS (more forest flags, e.g.
+# "--path-frames 300").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -22,6 +23,7 @@ FRAMES=${FRAMES:-300}
 TARGETS=${TARGETS:-"0.9 1.0"}
 FOREST_FRACTIONS=${FOREST_FRACTIONS:-}
 PEAK_MS=${PEAK_MS:-}
+FOREST_FLAGS=${FOREST_FLAGS:-}
 EXTRA=${EXTRA:-}
 OUT=${OUT:-results/vsync}
 mkdir -p "$OUT"
@@ -59,7 +61,8 @@ for round in $(seq 1 "$ROUNDS"); do
             hz=$(awk -v t="$target" 'BEGIN { printf "%.3f", 1000 / t }')
             for vsync in "" "--vsync-hz $hz"; do
                 # shellcheck disable=SC2086
-                windowed "$forest" --no-hud --path zigzag --summary --target-ms "$target" $vsync \
+                windowed "$forest" --no-hud --no-wind --path zigzag --summary $FOREST_FLAGS \
+                    --target-ms "$target" $vsync \
                     | sed "s/^summary/forest_$f vsync=${vsync:+$hz}/" | tee -a "$OUT/forest_$f.txt"
             done
         done

@@ -30,6 +30,22 @@ impl LodView {
         (point - self.position).dot(self.forward)
     }
 
+    /// The pixels a sphere covers on screen: its projected disc, at most the viewport (a
+    /// sphere around the eye covers what a sphere touching it would).
+    pub fn sphere_pixels(&self, center: Vec3, radius: f32) -> f32 {
+        if !(radius > 0.0 && radius.is_finite()) {
+            return 0.0;
+        }
+        let depth = self.depth(center).max(radius);
+        let r = radius * self.focal_pixels / depth;
+        let disc = core::f32::consts::PI * r * r;
+        if disc.is_finite() {
+            disc.min(self.viewport_pixels)
+        } else {
+            0.0
+        }
+    }
+
     /// The view's projection, for the pixel-driven searches.
     pub fn projection(&self) -> Projection {
         Projection {

@@ -295,12 +295,13 @@ fn the_budget_keeps_the_shown_level_while_it_fits_and_upgrades_with_a_margin() {
         meshes: MeshPathCost {
             per_draw: 0.0,
             per_triangle: 1.0,
+            per_pixel: 0.0,
         },
         ..Default::default()
     };
     let costs = PrimitiveCosts::from_calibration(&calibration, 1.0);
     let levels = [100, 50, 10];
-    let level = |time: f32, shown: Option<u32>| ladder_level(&costs, &levels, time, shown).0;
+    let level = |time: f32, shown: Option<u32>| ladder_level(&costs, &levels, 0.0, time, shown).0;
     // Nothing shown yet: the best that fits.
     assert_eq!(level(60.0, None), 1);
     assert_eq!(level(100.0, None), 0);
@@ -310,7 +311,7 @@ fn the_budget_keeps_the_shown_level_while_it_fits_and_upgrades_with_a_margin() {
     assert_eq!(level(120.0, Some(1)), 0);
     // No longer fitting: the best that fits, else the cheapest, never nothing.
     assert_eq!(level(40.0, Some(1)), 2);
-    let (cheapest, chosen) = ladder_level(&costs, &levels, 1.0, Some(0));
+    let (cheapest, chosen) = ladder_level(&costs, &levels, 0.0, 1.0, Some(0));
     assert_eq!(cheapest, 2);
     assert!(chosen.truncated && chosen.cost == 10.0 && chosen.meshes == 10.0);
 }
@@ -526,4 +527,56 @@ fn the_hand_out_pays_for_the_levels_shown_while_the_hysteresis_holds() {
         "no level was ever held: the test saw no hysteresis"
     );
     assert!(switched > 0, "no level ever changed");
+}
+
+/// The app's own meshes (no ladder) are not budgeted but predicted: spawning them takes
+/// their time from the trees in the same frame; hidden ones and ones behind the camera
+/// count for nothing.
+#[test]
+fn the_app_s_own_meshes_move_the_prediction_in_the_frame_they_appear() {
+    let (mut app, _) = app(0);
+    let before = frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, 150.0);
+    assert_eq!(before.app_mesh_draws, 0);
+    let mesh = app
+        .world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .add(Sphere::new(1.0).mesh().uv(64, 32));
+    let aabb = Sphere::new(1.0).mesh().uv(64, 32).compute_aabb().unwrap();
+    let ahead = (LOOK_AT - EYE).normalize();
+    let world = app.world_mut();
+    for k in 0..20 {
+        let at = EYE + ahead * (6.0 + 2.0 * k as f32) + Vec3::Y * ((k % 3) as f32 - 1.0);
+        world.spawn((
+            Mesh3d(mesh.clone()),
+            aabb,
+            InheritedVisibility::VISIBLE,
+            Transform::from_translation(at).with_scale(Vec3::splat(1.5)),
+        ));
+    }
+    // Hidden, and behind the camera.
+    world.spawn((
+        Mesh3d(mesh.clone()),
+        aabb,
+        InheritedVisibility::HIDDEN,
+        Transform::from_translation(EYE + ahead * 10.0),
+    ));
+    world.spawn((
+        Mesh3d(mesh.clone()),
+        aabb,
+        InheritedVisibility::VISIBLE,
+        Transform::from_translation(EYE - ahead * 10.0),
+    ));
+    let after = frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, 150.0);
+    assert_eq!(after.app_mesh_draws, 20, "{after:?}");
+    assert!(after.app_meshes_ms > 0.0);
+    // Their time is taken before the hand-out, in this very frame.
+    assert!(
+        after.render_budget_ms <= before.render_budget_ms - after.app_meshes_ms + 0.01,
+        "{} ms handed out with the meshes ({} ms), {} ms before",
+        after.render_budget_ms,
+        after.app_meshes_ms,
+        before.render_budget_ms
+    );
+    let c = after.calibrated;
+    assert!(c.meshes > 0.0 && c.mesh_pixels > 0.0, "{c:?}");
 }

@@ -156,6 +156,9 @@ pub struct MeshPathCost {
     pub per_draw: f32,
     /// Per triangle drawn.
     pub per_triangle: f32,
+    /// Per pixel covered (the material's fragments: a PBR material on a large prop costs
+    /// far more by its pixels than by its triangles).
+    pub per_pixel: f32,
 }
 
 impl Default for MeshPathCost {
@@ -163,11 +166,13 @@ impl Default for MeshPathCost {
     /// learns one factor on it from whole frames (see [`crate::cost`]); the `meshes`
     /// example holds its target with this prior, while one 2.7× dearer settled at a
     /// factor of 0.1–0.4 and oscillated (the family's share is hard to tell from whole
-    /// frames). The calibration run does not measure it yet.
+    /// frames). The calibration run does not measure it yet. Per pixel, 20 ns: about four
+    /// times this crate's pass's fill, for a lit PBR fragment.
     fn default() -> Self {
         Self {
             per_draw: 30e-6,
             per_triangle: 0.4e-6,
+            per_pixel: 20e-9,
         }
     }
 }
@@ -279,6 +284,7 @@ impl Calibration {
         for (part, value) in [
             ("meshes.per_draw", calibration.meshes.per_draw),
             ("meshes.per_triangle", calibration.meshes.per_triangle),
+            ("meshes.per_pixel", calibration.meshes.per_pixel),
         ] {
             if !(value.is_finite() && (0.0..=MAX_PRIMITIVE_SECONDS).contains(&value)) {
                 return Err(CalibrationError::Invalid(format!(

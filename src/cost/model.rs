@@ -5,9 +5,11 @@
 //! *logic* `L`), the render world's rendering of the frame (`R`), and the interval the
 //! frame took (`F`). The model predicts each from what the frame contains:
 //!
-//! * `R = speed_R · (θ₀ + θ₁·T + θ₂·P + θ₃·Λ + θ₄·Π)`: a fixed part (Bevy's own passes,
-//!   the upload, the present) and the selection's triangles (`T`: per triangle, `P`: per
-//!   covered pixel), lines `Λ` and points `Π`, each priced by the calibration; so the
+//! * `R = speed_R · (θ₀ + θ₁·T + θ₂·P + θ₃·Λ + θ₄·Π + θ₅·M + θ₆·Q)`: a fixed part
+//!   (Bevy's own passes, the upload, the present), the selection's triangles (`T`: per
+//!   triangle, `P`: per covered pixel), lines `Λ` and points `Π`, and the meshes on Bevy's
+//!   own path — ladder levels and the app's own visible meshes — per draw and triangle
+//!   (`M`) and per covered pixel (`Q`), each priced by the calibration; so the
 //!   `θ` are factors on the calibration, which keeps its measured shape across line
 //!   widths and point sizes.
 //! * `L = L₀ + speed_L · (φ₀ + φ₁·n)`: the logic `L₀` that already ran when the Budget
@@ -121,6 +123,8 @@ pub struct LearnedCosts {
     pub mesh_draw_us: f32,
     /// Per triangle of such a mesh, ns.
     pub mesh_triangle_ns: f32,
+    /// Per pixel such a mesh covers, ns.
+    pub mesh_pixel_ns: f32,
     /// Factors on the calibration (speed included), per family.
     pub scales: FamilyScales,
     /// The main world's logic after the Budget stage with nothing visible, ms.
@@ -170,8 +174,9 @@ pub struct LearnedFrame {
 /// two late).
 const KEPT_PREDICTIONS: usize = 32;
 
-/// The render model's parameters: fixed, triangles, triangle pixels, lines, points.
-const RENDER_PARAMETERS: usize = 6;
+/// The render model's parameters: fixed, triangles, triangle pixels, lines, points,
+/// meshes, mesh pixels.
+const RENDER_PARAMETERS: usize = 7;
 /// The logic model's: fixed, per visible instance.
 const LOGIC_PARAMETERS: usize = 2;
 /// The overlap's: sync, serial share.
@@ -233,9 +238,9 @@ impl CostModel {
         let fixed = f64::from(calibration.render_fixed_time());
         // Factors within ×100 of the calibration; the fixed part up to 10 s.
         let render = CostFilter::new(
-            [fixed.max(1e-4), 1.0, 1.0, 1.0, 1.0, 1.0],
-            [0.0, 0.01, 0.01, 0.01, 0.01, 0.01],
-            [10.0, 100.0, 100.0, 100.0, 100.0, 100.0],
+            [fixed.max(1e-4), 1.0, 1.0, 1.0, 1.0, 1.0, 1.0],
+            [0.0, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01],
+            [10.0, 100.0, 100.0, 100.0, 100.0, 100.0, 100.0],
             rates.speed_seconds,
             rates.costs_seconds,
         );
@@ -313,6 +318,7 @@ impl CostModel {
             lines: s(3),
             points: s(4),
             meshes: s(5),
+            mesh_pixels: s(6),
         }
     }
 
@@ -478,6 +484,7 @@ impl CostModel {
             point_us: first(&c.points) * scales.points * 1e6,
             mesh_draw_us: c.meshes.per_draw * scales.meshes * 1e6,
             mesh_triangle_ns: c.meshes.per_triangle * scales.meshes * 1e9,
+            mesh_pixel_ns: c.meshes.per_pixel * scales.mesh_pixels * 1e9,
             scales,
             logic_fixed_ms: (logic[0] * logic_speed * 1000.0) as f32,
             logic_per_instance_us: (logic[1] * logic_speed * 1e6) as f32,
@@ -506,8 +513,8 @@ pub const MIN_PASS_PART: f32 = 0.25;
 
 /// [`render_regressors`] of what the forest pass draws: no fixed part, no meshes.
 fn pass_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {
-    let [_, triangles, pixels, lines, points, _] = render_regressors(calibrated);
-    [0.0, triangles, pixels, lines, points, 0.0]
+    let [_, triangles, pixels, lines, points, _, _] = render_regressors(calibrated);
+    [0.0, triangles, pixels, lines, points, 0.0, 0.0]
 }
 
 fn render_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {
@@ -518,6 +525,7 @@ fn render_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {
         f64::from(calibrated.lines),
         f64::from(calibrated.points),
         f64::from(calibrated.meshes),
+        f64::from(calibrated.mesh_pixels),
     ]
 }
 

@@ -18,8 +18,11 @@ pub struct FamilyScales {
     pub lines: f32,
     /// Points, every size.
     pub points: f32,
-    /// Meshes on Bevy's own path (ladder entities), per draw and per triangle alike.
+    /// Meshes on Bevy's own path (ladder entities and the app's own), per draw and per
+    /// triangle alike.
     pub meshes: f32,
+    /// Per covered pixel of those meshes (their materials' fragments).
+    pub mesh_pixels: f32,
 }
 
 impl FamilyScales {
@@ -34,6 +37,7 @@ impl FamilyScales {
             lines: scale,
             points: scale,
             meshes: scale,
+            mesh_pixels: scale,
         }
     }
 }
@@ -55,14 +59,22 @@ pub struct FamilyTimes {
     pub lines: f32,
     /// Points.
     pub points: f32,
-    /// Meshes on Bevy's own path (ladder entities).
+    /// Meshes on Bevy's own path (ladder entities and the app's own), per draw and per
+    /// triangle.
     pub meshes: f32,
+    /// Their covered pixels.
+    pub mesh_pixels: f32,
 }
 
 impl FamilyTimes {
     /// The whole time.
     pub fn total(&self) -> f32 {
-        self.triangles + self.triangle_pixels + self.lines + self.points + self.meshes
+        self.triangles
+            + self.triangle_pixels
+            + self.lines
+            + self.points
+            + self.meshes
+            + self.mesh_pixels
     }
 
     /// Each part divided by its family's factor: the same selection priced by the
@@ -75,6 +87,7 @@ impl FamilyTimes {
             lines: over(self.lines, scales.lines),
             points: over(self.points, scales.points),
             meshes: over(self.meshes, scales.meshes),
+            mesh_pixels: over(self.mesh_pixels, scales.mesh_pixels),
         }
     }
 }
@@ -86,6 +99,7 @@ impl core::ops::AddAssign for FamilyTimes {
         self.lines += other.lines;
         self.points += other.points;
         self.meshes += other.meshes;
+        self.mesh_pixels += other.mesh_pixels;
     }
 }
 
@@ -109,6 +123,8 @@ pub struct PrimitiveCosts {
     pub mesh_draw: f32,
     /// Per triangle of such a mesh.
     pub mesh_triangle: f32,
+    /// Per pixel such a mesh covers.
+    pub mesh_pixel: f32,
     /// The most pixels one object (a trunk, a tree's leaves) or one batch of primitives
     /// can cover: the viewport's. A tree at the camera projects to millions of pixels per
     /// triangle, but its triangles together fill the screen, no more (the depth test
@@ -146,6 +162,7 @@ impl PrimitiveCosts {
             point_pixel: each(&calibration.points, |c| c.per_pixel, scales.points),
             mesh_draw: clean(calibration.meshes.per_draw, scales.meshes),
             mesh_triangle: clean(calibration.meshes.per_triangle, scales.meshes),
+            mesh_pixel: clean(calibration.meshes.per_pixel, scales.mesh_pixels),
             max_pixels: f32::INFINITY,
         }
     }
@@ -180,6 +197,15 @@ impl PrimitiveCosts {
     /// One mesh of `triangles` triangles on Bevy's own path.
     pub fn mesh(&self, triangles: u32) -> f32 {
         self.mesh_draw + triangles as f32 * self.mesh_triangle
+    }
+
+    /// The fragments of meshes on Bevy's path covering `pixels` (capped at the viewport's).
+    pub fn mesh_pixels(&self, pixels: f32) -> f32 {
+        if pixels.is_finite() && pixels > 0.0 {
+            pixels.min(self.max_pixels) * self.mesh_pixel
+        } else {
+            0.0
+        }
     }
 
     /// `count` points of `size` pixels.

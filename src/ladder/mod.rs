@@ -21,6 +21,7 @@
 //! the one chosen, so a held dearer level takes its time from the objects after it in
 //! the hand-out and the frame stays on time.
 
+mod app_meshes;
 mod generate;
 mod names;
 
@@ -207,6 +208,12 @@ impl Plugin for LadderPlugin {
                         .chain()
                         .in_set(SherwoodSystems::Instances),
                     show_ladder_levels.in_set(SherwoodSystems::DrawLists),
+                    // After Bevy has computed new meshes' bounds and visibility, so a mesh
+                    // spawned this frame counts this frame.
+                    app_meshes::count_app_meshes
+                        .in_set(SherwoodSystems::Value)
+                        .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
+                        .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),
                 ),
             );
     }

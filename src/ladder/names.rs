@@ -9,7 +9,8 @@ use bevy::prelude::*;
 
 use super::{LadderLevel, LodLadder};
 
-/// Put on a scene's root (for example beside a glTF `SceneRoot`): once its descendants
+/// Put on a scene's root (beside the `WorldAssetRoot` a glTF scene spawns from, in Bevy
+/// 0.19; see the `gltf_props` example): once its descendants
 /// are spawned and their meshes loaded, every group of siblings named `X_LOD0`,
 /// `X_LOD1`, … (case-insensitive `_LOD` followed by the level, best first) becomes a
 /// [`LodLadder`] on the `X_LOD0` node's mesh entity, and the other levels' nodes are

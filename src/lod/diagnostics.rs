@@ -27,6 +27,11 @@ pub struct LodDiagnostics {
     pub logic_ms: f32,
     /// The main world's logic measured when the budget was handed out, ms.
     pub logic_so_far_ms: f32,
+    /// The app's own visible meshes (not ladder entities): their predicted rendering, ms,
+    /// taken from the time before it is handed out.
+    pub app_meshes_ms: f32,
+    /// How many of them were drawn in the budget's view.
+    pub app_mesh_draws: u32,
     /// Rendering time handed out to the objects, ms (the fixed part excluded).
     pub render_budget_ms: f32,
     /// Predicted fixed part of the rendering, ms.

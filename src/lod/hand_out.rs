@@ -84,7 +84,21 @@ pub(super) fn hand_out_time(
         frame.target_below_logic_since = None;
         frame.warned_target = false;
     }
-    let rendering = (available - fixed).max(0.0);
+    // The app's own visible meshes are not budgeted but predicted: they take their time
+    // first, like the fixed part.
+    let app_meshes = {
+        let load = ladders.app_meshes;
+        let meshes =
+            load.draws as f32 * costs.mesh_draw + load.triangles as f32 * costs.mesh_triangle;
+        let mesh_pixels = costs.mesh_pixels(load.pixels);
+        select::Selected {
+            cost: meshes + mesh_pixels,
+            meshes,
+            mesh_pixels,
+            ..select::Selected::default()
+        }
+    };
+    let rendering = (available - fixed - app_meshes.cost).max(0.0);
 
     // The models by `VisibleTree::model`, looked up once a frame.
     let tree_models: Vec<Option<&TreeModel>> =
@@ -106,13 +120,21 @@ pub(super) fn hand_out_time(
         parts.lines += chosen.lines;
         parts.points += chosen.points;
         parts.meshes += chosen.meshes;
+        parts.mesh_pixels += chosen.mesh_pixels;
         chosen
     };
     let LadderObjects {
         entries: ladder_entries,
         triangles: ladder_triangles,
         chosen: ladder_chosen,
+        ..
     } = &mut *ladders;
+    // The pixels a ladder entity covers, whatever its level.
+    let view = frame.view;
+    let ladder_pixels = |e: u32| match (ladder_entries.get(e as usize), view) {
+        (Some(entry), Some(view)) => view.sphere_pixels(entry.center, entry.radius),
+        _ => 0.0,
+    };
     // A ladder entry's level shown now, which Robin Hood's choice keeps while it fits
     // (the ladder strategies price exact rungs and keep their own previous choice).
     let keep_shown = budget.strategy == StrategyKind::RobinHood;
@@ -135,13 +157,19 @@ pub(super) fn hand_out_time(
     let ladder_pick = |object: Object, time: f32| {
         let hold = hold_of(object.index);
         let levels = levels_of(object.index);
-        let (wanted, chosen) =
-            select::ladder_level(&costs, levels, time, keep_shown.then_some(hold.shown));
+        let pixels = ladder_pixels(object.index);
+        let (wanted, chosen) = select::ladder_level(
+            &costs,
+            levels,
+            pixels,
+            time,
+            keep_shown.then_some(hold.shown),
+        );
         let shown = hold.shown_for(wanted);
         let paid = if shown == wanted {
             chosen
         } else {
-            select::ladder_cost(&costs, levels, shown)
+            select::ladder_cost(&costs, levels, pixels, shown)
         };
         (wanted, paid)
     };
@@ -250,9 +278,16 @@ pub(super) fn hand_out_time(
                 floors.clear();
                 floors.extend(objects.iter().map(|object| {
                     if object.part == Part::Ladder {
-                        return select::ladder_level(&costs, levels_of(object.index), 0.0, None)
-                            .1
-                            .cost;
+                        let pixels = ladder_pixels(object.index);
+                        return select::ladder_level(
+                            &costs,
+                            levels_of(object.index),
+                            pixels,
+                            0.0,
+                            None,
+                        )
+                        .1
+                        .cost;
                     }
                     let tree = &trees[object.index as usize];
                     let Some(m) = model_of(tree) else {
@@ -592,16 +627,18 @@ pub(super) fn hand_out_time(
     }
     // The selection by family, priced as the calibration alone would: what the cost
     // model learns from once the frame is measured.
-    let triangles = (predicted - parts.lines - parts.points - parts.meshes).max(0.0);
+    let triangles =
+        (predicted - parts.lines - parts.points - parts.meshes - parts.mesh_pixels).max(0.0);
     let triangle_vertices = (counts.triangles as f32 * costs.triangle).min(triangles);
     let priced = FamilyTimes {
         triangles: triangle_vertices,
         triangle_pixels: triangles - triangle_vertices,
         lines: parts.lines,
         points: parts.points,
-        meshes: parts.meshes,
+        meshes: parts.meshes + app_meshes.meshes,
+        mesh_pixels: parts.mesh_pixels + app_meshes.mesh_pixels,
     };
-    let render = fixed + predicted;
+    let render = fixed + app_meshes.cost + predicted;
     let frame_time = overlap.frame_time(logic, render);
     let calibrated = priced.unscaled(scales);
     cost_model.record(FramePrediction {
@@ -622,6 +659,8 @@ pub(super) fn hand_out_time(
         visible_instances,
         logic_ms: logic * 1000.0,
         logic_so_far_ms: logic_so_far * 1000.0,
+        app_meshes_ms: app_meshes.cost * 1000.0,
+        app_mesh_draws: ladders.app_meshes.draws,
         render_budget_ms: rendering * 1000.0,
         render_fixed_ms: fixed * 1000.0,
         predicted_render_ms: render * 1000.0,

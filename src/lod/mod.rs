@@ -117,6 +117,18 @@ pub(crate) struct LadderObjects {
     pub(crate) triangles: Vec<u32>,
     /// Per entry, the level the Budget stage chose (0 = best); `None` out of view.
     pub(crate) chosen: Vec<Option<u32>>,
+    /// The app's own visible meshes (not ladder entities) this frame.
+    pub(crate) app_meshes: AppMeshLoad,
+}
+
+/// The app's own visible meshes in the budget's view: not budgeted, but predicted, so the
+/// trees get the time they leave.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct AppMeshLoad {
+    pub(crate) draws: u32,
+    pub(crate) triangles: u64,
+    /// The pixels their bounds cover (each at most the viewport).
+    pub(crate) pixels: f32,
 }
 
 /// A ladder entity as the stages see it: a bounding sphere, an area for the value

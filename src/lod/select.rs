@@ -51,8 +51,11 @@ pub struct Selected {
     pub lines: f32,
     /// The part of `cost` spent on points.
     pub points: f32,
-    /// The part of `cost` spent on meshes drawn by Bevy's own path (a ladder level).
+    /// The part of `cost` spent on meshes drawn by Bevy's own path (a ladder level), per
+    /// draw and per triangle.
     pub meshes: f32,
+    /// The part of `cost` spent on those meshes' covered pixels.
+    pub mesh_pixels: f32,
     /// The time was below the cheapest representation, which is drawn anyway.
     pub truncated: bool,
     /// Full detail is drawn: every triangle of the object (of its visible leaf groups),
@@ -68,6 +71,7 @@ impl Selected {
             lines: a.lines + b.lines,
             points: a.points + b.points,
             meshes: a.meshes + b.meshes,
+            mesh_pixels: a.mesh_pixels + b.mesh_pixels,
             truncated: a.truncated || b.truncated,
             full: a.full && b.full,
         }
@@ -381,21 +385,24 @@ fn thickest_triangles(model: &TreeModel) -> u32 {
 /// two, frame-to-frame changes of its share do not flip it back and forth.
 pub const LADDER_UPGRADE_FRACTION: f32 = 0.85;
 
-/// The level of a LOD ladder (`triangles`: each level's count, best first) chosen with
-/// `time` seconds, when it shows `shown`: the best level costing at most
-/// [`LADDER_UPGRADE_FRACTION`] of the time if that is better than `shown`, else `shown`
-/// if it fits, else the best that fits, else the cheapest (nothing visible is dropped);
-/// with its cost on Bevy's mesh path. A ladder without levels costs nothing.
+/// The level of a LOD ladder (`triangles`: each level's count, best first; `pixels`: what
+/// the entity covers on screen, at every level) chosen with `time` seconds, when it shows
+/// `shown`: the best level costing at most [`LADDER_UPGRADE_FRACTION`] of the time if that
+/// is better than `shown`, else `shown` if it fits, else the best that fits, else the
+/// cheapest (nothing visible is dropped); with its cost on Bevy's mesh path. A ladder
+/// without levels costs nothing.
 pub fn ladder_level(
     costs: &PrimitiveCosts,
     triangles: &[u32],
+    pixels: f32,
     time: f32,
     shown: Option<u32>,
 ) -> (u32, Selected) {
     let Some(last) = triangles.len().checked_sub(1) else {
         return (0, Selected::default());
     };
-    let cost = |level: usize| costs.mesh(triangles[level]);
+    let fragments = costs.mesh_pixels(pixels);
+    let cost = |level: usize| costs.mesh(triangles[level]) + fragments;
     let best_within = |budget: f32| (0..=last).find(|&level| cost(level) <= budget);
     let shown = shown.map(|s| (s as usize).min(last));
     let level = match (best_within(LADDER_UPGRADE_FRACTION * time), shown) {
@@ -403,7 +410,7 @@ pub fn ladder_level(
         (_, Some(s)) if cost(s) <= time => s,
         _ => best_within(time).unwrap_or(last),
     };
-    let selected = ladder_cost(costs, triangles, level as u32);
+    let selected = ladder_cost(costs, triangles, pixels, level as u32);
     (
         level as u32,
         Selected {
@@ -413,16 +420,18 @@ pub fn ladder_level(
     )
 }
 
-/// What showing `level` of a ladder (`triangles` as for [`ladder_level`]) costs on Bevy's
-/// mesh path (the last level past the end; nothing for no levels).
-pub fn ladder_cost(costs: &PrimitiveCosts, triangles: &[u32], level: u32) -> Selected {
+/// What showing `level` of a ladder (`triangles` and `pixels` as for [`ladder_level`])
+/// costs on Bevy's mesh path (the last level past the end; nothing for no levels).
+pub fn ladder_cost(costs: &PrimitiveCosts, triangles: &[u32], pixels: f32, level: u32) -> Selected {
     let Some(&count) = triangles.get(level as usize).or(triangles.last()) else {
         return Selected::default();
     };
-    let spent = costs.mesh(count);
+    let meshes = costs.mesh(count);
+    let mesh_pixels = costs.mesh_pixels(pixels);
     Selected {
-        cost: spent,
-        meshes: spent,
+        cost: meshes + mesh_pixels,
+        meshes,
+        mesh_pixels,
         full: level == 0,
         ..Selected::default()
     }
@@ -931,6 +940,7 @@ fn tclod_choice(
             lines: 0.0,
             points: each * count as f32,
             meshes: 0.0,
+            mesh_pixels: 0.0,
             truncated: affordable == 0,
             full: false,
         },
@@ -1111,6 +1121,7 @@ pub fn leaves_at_depth(
         lines: 0.0,
         points: point_cost,
         meshes: 0.0,
+        mesh_pixels: 0.0,
         truncated: overran(method, cost, time),
         full: points == 0 && tris == n,
     }
