@@ -69,6 +69,7 @@ impl LodView {
 pub struct BudgetView;
 
 /// A camera the budget may follow, as [`choose_view`] sees it.
+#[cfg(any(feature = "render", test))]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Candidate<K> {
     pub(crate) key: K,
@@ -83,6 +84,7 @@ pub(crate) struct Candidate<K> {
 }
 
 /// The camera the budget follows, and how many others were as likely (a reason to warn).
+#[cfg(any(feature = "render", test))]
 pub(crate) fn choose_view<K: Copy>(candidates: &[Candidate<K>]) -> Option<(K, usize)> {
     let eligible = || candidates.iter().filter(|c| c.eligible);
     let pool: Vec<&Candidate<K>> = if eligible().any(|c| c.marked) {
