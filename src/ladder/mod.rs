@@ -210,7 +210,9 @@ impl Plugin for LadderPlugin {
                     show_ladder_levels.in_set(SherwoodSystems::DrawLists),
                     // After Bevy has computed new meshes' bounds and visibility, so a mesh
                     // spawned this frame counts this frame.
+                    // An app without Bevy's meshes (a headless test) has none to count.
                     app_meshes::count_app_meshes
+                        .run_if(resource_exists::<Assets<Mesh>>)
                         .in_set(SherwoodSystems::Value)
                         .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds)
                         .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),
