@@ -59,7 +59,10 @@ pub struct PointRun {
 /// per order).
 ///
 /// A [`TreeInstance`](crate::instance::TreeInstance) without this component is drawn at
-/// full detail; one whose list is empty is not drawn.
+/// full detail if it has [`FixedDrawList`](crate::instance::FixedDrawList), and otherwise
+/// — spawned after this frame's level of detail was chosen — at its
+/// [coarsest](Self::coarsest) until the next frame gives it its own; one whose list is
+/// empty is not drawn.
 #[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default)]
 pub struct TreeDrawList {
@@ -83,6 +86,25 @@ impl TreeDrawList {
             trunk_lines: Vec::new(),
             leaf_triangles: core::iter::once(0..model.leaves.len() as u32).collect(),
             leaf_points: Vec::new(),
+        }
+    }
+
+    /// Every trunk segment as a 1-pixel line and every leaf as a 1-pixel point: what a tree
+    /// the level of detail has not seen yet is drawn as (its cheapest representation that
+    /// still shows the whole tree, whatever the view).
+    pub fn coarsest(model: &TreeModel) -> Self {
+        let leaves = model.leaves.len() as u32;
+        Self {
+            trunk_triangles: 0..0,
+            trunk_lines: vec![LineRun {
+                segments: 0..model.segments.len() as u32,
+                width: 1,
+            }],
+            leaf_triangles: Vec::new(),
+            leaf_points: vec![PointRun {
+                leaves: 0..leaves,
+                size: 1,
+            }],
         }
     }
 

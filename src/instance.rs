@@ -166,31 +166,68 @@ impl ForestInstances {
 
 type Tracked = (With<TreeInstance>, Without<FixedDrawList>);
 
-/// Keeps [`ForestInstances`] up to date: a new layout when instances were added, removed
-/// or given another tree; otherwise the moved ones' transforms.
+/// The farthest a tree may stand from the origin on any axis, metres: past it an `f32`
+/// position is coarser than a few centimetres, and one tree that far would stretch the
+/// culling hierarchy over every other.
+pub const MAX_TREE_COORDINATE: f32 = 1.0e6;
+
+/// Whether a tree at `transform` with `scale` can be culled and drawn: a finite
+/// transform within [`MAX_TREE_COORDINATE`] of the origin and a positive, finite scale.
+/// Others (a NaN from a physics step, a tree sent to infinity) stay out of the instance
+/// table, with a warning, until they are placeable again.
+pub fn placeable(transform: &Affine3A, scale: f32) -> bool {
+    transform.is_finite()
+        && transform.translation.abs().max_element() <= MAX_TREE_COORDINATE
+        && scale.is_finite()
+        && scale > 0.0
+}
+
+/// Keeps [`ForestInstances`] up to date: a new layout when instances were added, removed,
+/// given another tree or moved in or out of [`placeable`] places; otherwise the moved
+/// ones' transforms.
 pub(crate) fn track_instances(
     mut table: ResMut<ForestInstances>,
     changed: Query<(), (Tracked, Changed<TreeInstance>)>,
     mut removed: RemovedComponents<TreeInstance>,
     mut fixed: RemovedComponents<FixedDrawList>,
     trees: Query<(Entity, &TreeInstance, &GlobalTransform), Without<FixedDrawList>>,
-    moved: Query<(Entity, &GlobalTransform), (Tracked, Changed<GlobalTransform>)>,
+    moved: Query<(Entity, &TreeInstance, &GlobalTransform), (Tracked, Changed<GlobalTransform>)>,
+    mut left_out: Local<bevy::ecs::entity::EntityHashSet>,
 ) {
     let table = &mut *table;
     // (`Changed` includes added. Both readers are drained every frame; trees that were
     // never in the table, such as a calibration's benchmark trees, change nothing.)
     let left = removed
         .read()
-        .filter(|e| table.index.contains_key(e))
+        .filter(|e| table.index.contains_key(e) || left_out.remove(e))
         .count();
     let joined = fixed.read().filter(|&e| trees.contains(e)).count();
-    if left + joined > 0 || !changed.is_empty() {
+    let crossed = || {
+        moved.iter().any(|(entity, tree, transform)| {
+            table.index.contains_key(&entity) != placeable(&transform.affine(), tree.scale)
+        })
+    };
+    if left + joined > 0 || !changed.is_empty() || crossed() {
         // Survivors keep their order; the new ones follow forest by forest in each
         // forest's own instance order (hand-placed trees last), so a respawned forest is
         // laid out the same way every time, whatever entities it was given.
         let mut order: Vec<(Entity, &TreeInstance, Affine3A)> = trees
             .iter()
             .map(|(entity, tree, transform)| (entity, tree, transform.affine()))
+            .filter(|&(entity, tree, affine)| {
+                let placed = placeable(&affine, tree.scale);
+                if placed {
+                    left_out.remove(&entity);
+                } else if left_out.insert(entity) {
+                    warn!(
+                        "bevy_sherwood: tree {entity} is not drawn: its transform ({}) or \
+                         scale ({}) is not finite, or it stands over {MAX_TREE_COORDINATE} m \
+                         from the origin; it is drawn again once it is placed",
+                        affine.translation, tree.scale
+                    );
+                }
+                placed
+            })
             .collect();
         order.sort_by_key(|(entity, tree, _)| {
             (
@@ -204,7 +241,7 @@ pub(crate) fn track_instances(
         return;
     }
     table.moved.clear();
-    for (entity, transform) in &moved {
+    for (entity, _, transform) in &moved {
         if let Some(&i) = table.index.get(&entity) {
             table.transforms[i as usize] = transform.affine();
             table.moved.push(i);

@@ -12,6 +12,7 @@ use bevy_sherwood::cost::{
     Calibration, CalibrationChoice, CostModel, CostSettings, FramePrediction, FrameSample,
     FrameSamples,
 };
+use bevy_sherwood::culling::CullView;
 use bevy_sherwood::prelude::*;
 
 /// What the synthetic machine really costs.
@@ -375,6 +376,66 @@ fn incomplete_and_absurd_frames_are_not_learned() {
     let after = app.world().resource::<CostModel>().learned();
     assert_eq!(after.frames_learned, 0);
     assert_eq!(before.scales, after.scales);
+}
+
+/// A window minimised (the view the budget follows goes away: nothing is drawn, the
+/// render world's frames take next to nothing) and a stall (a 10 s frame, as under a
+/// debugger): neither is learned from, and the model is where it was when they end.
+#[test]
+fn a_minimised_window_and_a_stall_are_not_learned() {
+    let (mut app, size) = app(Calibration::default());
+    let mut driver = Driver::new(0.02);
+    for k in 0..200 {
+        vary(&mut app, size, k);
+        driver.frame(&mut app, &MACHINE);
+    }
+    // The two samples still in flight arrive, so that only the faults follow.
+    for sample in driver.pending.drain(..) {
+        app.world_mut().resource_mut::<FrameSamples>().push(sample);
+    }
+    app.update();
+    let before = app.world().resource::<CostModel>().learned();
+    let view = app
+        .world_mut()
+        .query_filtered::<Entity, With<LodView>>()
+        .single(app.world())
+        .unwrap();
+    app.world_mut()
+        .entity_mut(view)
+        .remove::<(LodView, CullView)>();
+    for _ in 0..10 {
+        app.update();
+        let frame = app.world().resource::<LodDiagnostics>().frame;
+        let p = *app
+            .world()
+            .resource::<CostModel>()
+            .prediction(frame)
+            .unwrap();
+        assert_eq!(p.calibrated.total(), 0.0, "a frame without a view drew");
+        let mut sample = MACHINE.sample(&p, 1.0);
+        sample.render = 1e-4;
+        sample.interval = 0.016;
+        app.world_mut().resource_mut::<FrameSamples>().push(sample);
+    }
+    vary(&mut app, size, 0);
+    for stall in [10.0, 3.0, 30.0] {
+        app.update();
+        let frame = app.world().resource::<LodDiagnostics>().frame;
+        let p = *app
+            .world()
+            .resource::<CostModel>()
+            .prediction(frame)
+            .unwrap();
+        let mut sample = MACHINE.sample(&p, 1.0);
+        sample.render = stall;
+        sample.interval = stall;
+        app.world_mut().resource_mut::<FrameSamples>().push(sample);
+    }
+    app.update();
+    let after = app.world().resource::<CostModel>().learned();
+    assert_eq!(after.frames_learned, before.frames_learned);
+    assert_eq!(after.scales, before.scales);
+    assert_eq!(after.render_fixed_ms, before.render_fixed_ms);
 }
 
 /// A machine whose GPU paces the frame: the render world's CPU takes a third of what the

@@ -26,6 +26,7 @@ pub use measure::{
 };
 pub use model::{
     CostModel, FrameOverlap, FramePrediction, LearnedCosts, LearnedFrame, LearningRates,
+    STALL_FACTOR, STALL_SECONDS, is_stall,
 };
 pub use pacing::MeasuredPacing;
 pub use primitive::{FamilyScales, FamilyTimes, PrimitiveCosts};
@@ -56,7 +57,8 @@ pub struct CostSettings {
     /// alone. Default: `true`.
     pub online: bool,
     /// How fast the model learns. Changing them forgets what was learned. Default:
-    /// [`LearningRates::default`].
+    /// [`LearningRates::default`]. A rate that is not finite is taken as its default and
+    /// the others kept within bounds ([`LearningRates::usable`]), with a warning.
     pub rates: LearningRates,
 }
 
@@ -184,10 +186,21 @@ fn learn_costs(
     mut model: ResMut<CostModel>,
     mut rates: Local<Option<LearningRates>>,
 ) {
-    if rates.is_some_and(|r| r != settings.rates) {
-        model.set_rates(settings.rates);
+    // Compared as used: a NaN set from an inspector is never equal to itself, and would
+    // otherwise forget everything every frame.
+    let wanted = settings.rates.usable();
+    if *rates != Some(wanted) {
+        if wanted != settings.rates {
+            warn!(
+                "bevy_sherwood: CostSettings::rates {:?} are not usable; learning with {wanted:?}",
+                settings.rates
+            );
+        }
+        if rates.is_some() {
+            model.set_rates(wanted);
+        }
+        *rates = Some(wanted);
     }
-    *rates = Some(settings.rates);
     if !settings.online {
         return;
     }

@@ -194,6 +194,32 @@ pub struct LearningRates {
     pub speed_seconds: f32,
 }
 
+impl LearningRates {
+    /// The shortest time constant used, seconds: a shorter one would chase each frame's
+    /// noise.
+    pub const MIN_SECONDS: f32 = 0.1;
+    /// The longest time constant used, seconds (an hour).
+    pub const MAX_SECONDS: f32 = 3600.0;
+
+    /// These rates as the model uses them: a time constant that is not finite is its
+    /// default, the others are kept within [`MIN_SECONDS`](Self::MIN_SECONDS)..=
+    /// [`MAX_SECONDS`](Self::MAX_SECONDS).
+    pub fn usable(self) -> Self {
+        let defaults = Self::default();
+        let usable = |v: f32, default: f32| {
+            if v.is_finite() {
+                v.clamp(Self::MIN_SECONDS, Self::MAX_SECONDS)
+            } else {
+                default
+            }
+        };
+        Self {
+            costs_seconds: usable(self.costs_seconds, defaults.costs_seconds),
+            speed_seconds: usable(self.speed_seconds, defaults.speed_seconds),
+        }
+    }
+}
+
 impl Default for LearningRates {
     fn default() -> Self {
         Self {
@@ -216,8 +242,6 @@ pub struct CostModel {
     overlap_gate: RobustGate,
     frame_spread: LogSpread,
     predictions: VecDeque<FramePrediction>,
-    /// Learning starts with the first complete frame that drew something.
-    started: bool,
     frames_learned: u32,
     last: Option<LearnedFrame>,
 }
@@ -235,6 +259,7 @@ impl Default for CostModel {
 impl CostModel {
     /// A model predicting with `calibration` and `overlap` until it learns better.
     pub fn new(calibration: Calibration, overlap: FrameOverlap, rates: LearningRates) -> Self {
+        let rates = rates.usable();
         let fixed = f64::from(calibration.render_fixed_time());
         // Factors within ×100 of the calibration; the fixed part up to 10 s.
         let render = CostFilter::new(
@@ -273,7 +298,6 @@ impl CostModel {
                 FRAME_SPREAD_SECONDS,
             ),
             predictions: VecDeque::new(),
-            started: false,
             frames_learned: 0,
             last: None,
         }
@@ -302,7 +326,7 @@ impl CostModel {
 
     /// The learning's time constants; changing them forgets what was learned.
     pub fn set_rates(&mut self, rates: LearningRates) {
-        self.rates = rates;
+        self.rates = rates.usable();
         self.reset();
     }
 
@@ -373,7 +397,8 @@ impl CostModel {
 
     /// Learns from a measured frame, if its prediction is still kept. Returns whether it
     /// was learned from: a frame that was not complete, whose times are not finite and
-    /// positive, or that came before the first frame that drew something, is not.
+    /// positive, that was predicted to draw nothing, or that stalled ([`is_stall`]) is
+    /// not.
     pub fn learn(&mut self, sample: &FrameSample) -> bool {
         while self
             .predictions
@@ -391,14 +416,13 @@ impl CostModel {
             return false;
         };
         self.predictions.pop_front();
-        if !sample.is_usable() {
+        // A frame that drew nothing (a minimised window, no view) says nothing of what
+        // drawing costs, and a stall (a debugger, a blocking load) nothing of the machine.
+        if !sample.is_usable()
+            || predicted.calibrated.total() <= 0.0
+            || is_stall(sample.interval, predicted.frame_time)
+        {
             return false;
-        }
-        if !self.started {
-            if predicted.calibrated.total() <= 0.0 {
-                return false;
-            }
-            self.started = true;
         }
         let dt = sample.interval;
         // The rendering side is whichever of the render world's CPU work and the GPU took
@@ -507,6 +531,24 @@ pub const FRAME_SPREAD_FLOOR: f32 = 0.01;
 /// (with one second, 1% of frames were let miss and 2–3% did).
 pub const FRAME_SPREAD_SECONDS: f32 = 2.0;
 
+/// A frame whose interval is over this many times its prediction, and over
+/// [`STALL_SECONDS`], stalled.
+pub const STALL_FACTOR: f32 = 4.0;
+/// The shortest interval that counts as a stall, seconds.
+pub const STALL_SECONDS: f32 = 1.0;
+
+/// Whether a frame of `interval` seconds, predicted to take `predicted`, stalled (a
+/// debugger, a blocking load, a window dragged): its interval is over
+/// max([`STALL_FACTOR`] × predicted, [`STALL_SECONDS`]). A stall is not learned from.
+pub fn is_stall(interval: f32, predicted: f32) -> bool {
+    let predicted = if predicted.is_finite() {
+        predicted
+    } else {
+        0.0
+    };
+    interval > (STALL_FACTOR * predicted).max(STALL_SECONDS)
+}
+
 /// A pass time is learned from only when the primitives it drew were predicted to take at
 /// least this share of it.
 pub const MIN_PASS_PART: f32 = 0.25;
@@ -532,6 +574,30 @@ fn render_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn learning_rates_are_used_within_bounds_and_a_stall_is_told_apart() {
+        let defaults = LearningRates::default();
+        let used = |v: f32| {
+            LearningRates {
+                costs_seconds: v,
+                speed_seconds: v,
+            }
+            .usable()
+        };
+        assert_eq!(used(f32::NAN), defaults);
+        assert_eq!(used(f32::NEG_INFINITY), defaults);
+        assert_eq!(used(0.0).speed_seconds, LearningRates::MIN_SECONDS);
+        assert_eq!(used(-3.0).costs_seconds, LearningRates::MIN_SECONDS);
+        assert_eq!(used(1e9).costs_seconds, LearningRates::MAX_SECONDS);
+        assert_eq!(defaults.usable(), defaults);
+        // A stall: over four times the prediction and over a second.
+        assert!(!is_stall(0.9, 0.1));
+        assert!(is_stall(1.1, 0.1));
+        assert!(!is_stall(3.0, 1.0));
+        assert!(is_stall(4.1, 1.0));
+        assert!(is_stall(2.0, f32::NAN));
+    }
 
     #[test]
     fn rendering_time_inverts_frame_time() {

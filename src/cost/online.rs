@@ -289,7 +289,10 @@ const MAX_STATE: usize = 8;
 ///
 /// A frame whose error is beyond [`HUBER_ERRORS`] typical errors counts as if it were at
 /// that bound, unless the frame before was beyond it on the same side: one hitch moves
-/// little, a step in speed is followed from its second frame.
+/// little, a step in speed is followed from its second frame. Whatever a frame says, it
+/// moves neither the speed nor any cost by more than [`MAX_STEP_FACTOR`], and the drift
+/// counts at most [`MAX_DRIFT_SECONDS`] of the time since the previous frame: a frame
+/// that came after a long stall is no more trusted than one that came on time.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CostFilter<const N: usize> {
     prior: [f64; N],
@@ -304,6 +307,12 @@ pub struct CostFilter<const N: usize> {
     /// The previous frame's error was beyond the gate, on this side (−1, 0 or 1).
     last_outlier: i8,
 }
+
+/// The most one frame moves the speed or any one cost, as a factor either way.
+pub const MAX_STEP_FACTOR: f64 = 1.5;
+
+/// The most time between two frames that the random walks count, seconds.
+pub const MAX_DRIFT_SECONDS: f32 = 1.0;
 
 /// One spread of the calibration's uncertainty, as a log factor: about ×3 either way.
 const PRIOR_SPREAD: f64 = 1.1;
@@ -377,7 +386,7 @@ impl<const N: usize> CostFilter<N> {
             return;
         }
         let noise = self.noise();
-        self.drift(f64::from(dt), noise * noise);
+        self.drift(f64::from(dt.min(MAX_DRIFT_SECONDS)), noise * noise);
         if let Some(error) = self.correct(x, measured, true) {
             self.gate.observe(error as f32, dt);
         }
@@ -436,9 +445,15 @@ impl<const N: usize> CostFilter<N> {
         if !(innovation.is_finite() && innovation > 0.0) {
             return None;
         }
+        // The whole step is shortened, not each part, so that its direction stays the
+        // filter's.
+        let largest = (0..n)
+            .map(|i| (ph[i] / innovation * error).abs())
+            .fold(0.0, f64::max);
+        let shorten = (MAX_STEP_FACTOR.ln() / largest).min(1.0);
         for i in 0..n {
             let gain = ph[i] / innovation;
-            self.state[i] += gain * error;
+            self.state[i] += gain * error * shorten;
             for (p, ph) in self.covariance[i][..n].iter_mut().zip(&ph[..n]) {
                 *p -= gain * ph;
             }
@@ -612,6 +627,36 @@ mod tests {
         );
         for (a, b) in costs.iter().zip(f.costs()) {
             assert!((b / a - 1.0).abs() < 0.03, "{costs:?} → {:?}", f.costs());
+        }
+    }
+
+    /// A debugger or a blocking load: frames far off, one after the other, after a long
+    /// wait each. However far off, no frame moves the speed or a cost by more than
+    /// `MAX_STEP_FACTOR`.
+    #[test]
+    fn no_frame_moves_the_filter_by_more_than_its_bound() {
+        let mut f = filter();
+        let x = [1.0, 0.03];
+        for _ in 0..200 {
+            f.learn(&x, 0.05, 0.05);
+        }
+        for measured in [5.0, 50.0, 0.0005, 500.0] {
+            for _ in 0..3 {
+                let (speed, costs) = (f.speed(), f.costs());
+                f.learn(&x, measured, 10.0);
+                let moved = (f64::from(f.speed() / speed)).ln().abs();
+                assert!(
+                    moved <= MAX_STEP_FACTOR.ln() + 1e-6,
+                    "speed ×{}",
+                    moved.exp()
+                );
+                for (a, b) in costs.iter().zip(f.costs()) {
+                    assert!(
+                        (b / a).ln().abs() <= MAX_STEP_FACTOR.ln() + 1e-9,
+                        "{a} → {b}"
+                    );
+                }
+            }
         }
     }
 

@@ -15,8 +15,8 @@ pub use desc::{
 };
 pub use placement::{Angles, Placement, Tilt, tilt_from_normal};
 pub use plugin::{
-    Ecosystem, EcosystemFileError, EcosystemLoader, EcosystemPlugin, Forest, ForestState,
-    ForestTerrain,
+    Ecosystem, EcosystemFileError, EcosystemLoader, EcosystemPlugin, Forest, ForestMembers,
+    ForestState, ForestTerrain, InForest,
 };
 pub use terrain::{FaultsDesc, Terrain, TerrainDesc, TerrainError};
 #[cfg(feature = "render")]

@@ -60,10 +60,24 @@ impl AssetLoader for EcosystemLoader {
 /// `commands.spawn(Forest(asset_server.load("forests/default.ecosystem.ron")))`.
 ///
 /// A malformed edit fails to load, is logged with its line, column and field, and leaves
-/// the previous forest standing.
+/// the previous forest standing. Despawning it despawns its trees and terrain
+/// ([`ForestMembers`]).
 #[derive(Component, Clone, Debug)]
 #[require(ForestState)]
 pub struct Forest(pub Handle<Ecosystem>);
+
+/// The [`Forest`] a tree or a terrain was spawned by: despawning the forest despawns
+/// them ([`ForestMembers`]). A relationship of its own, not `ChildOf`: the trees keep
+/// their own transforms and do not move with the forest entity.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+#[relationship(relationship_target = ForestMembers)]
+pub struct InForest(pub Entity);
+
+/// The trees and the terrain a [`Forest`] spawned (kept by Bevy from their
+/// [`InForest`]); they are despawned with it.
+#[derive(Component, Debug, Default, PartialEq, Eq)]
+#[relationship_target(relationship = InForest, linked_spawn)]
+pub struct ForestMembers(Vec<Entity>);
 
 /// What a [`Forest`] has spawned.
 #[derive(Component, Clone, Debug, Default)]
@@ -157,7 +171,7 @@ fn spawn_forests(
         };
         let terrain = state.terrain.take();
         for old in state.instances.drain(..).chain(terrain) {
-            commands.entity(old).despawn();
+            commands.entity(old).try_despawn();
         }
         state.species = ecosystem
             .species
@@ -193,6 +207,7 @@ fn spawn_forests(
                         leaf_material: instance.leaf_material,
                         motion: instance.motion,
                     },
+                    InForest(entity),
                     Transform {
                         translation,
                         rotation,
@@ -204,7 +219,9 @@ fn spawn_forests(
                 shadings.get(instance.trunk_material),
                 shadings.get(instance.leaf_material),
             ) {
-                commands.entity(id).insert(TreeShading { trunk, leaves });
+                commands
+                    .entity(id)
+                    .try_insert(TreeShading { trunk, leaves });
             }
             state.instances.push(id);
         }
@@ -214,6 +231,7 @@ fn spawn_forests(
                     forest: entity,
                     terrain: layout.terrain.clone(),
                 },
+                InForest(entity),
                 Transform::default(),
             ))
             .id();
@@ -238,9 +256,9 @@ fn spawn_forests(
             if let Some(materials) = materials.as_mut() {
                 commands
                     .entity(terrain)
-                    .insert((Mesh3d(mesh), MeshMaterial3d(materials.add(material))));
+                    .try_insert((Mesh3d(mesh), MeshMaterial3d(materials.add(material))));
             } else if let Some(materials) = standard_materials.as_mut() {
-                commands.entity(terrain).insert((
+                commands.entity(terrain).try_insert((
                     Mesh3d(mesh),
                     MeshMaterial3d(materials.add(StandardMaterial {
                         base_color: material.diffuse.into(),

@@ -308,7 +308,7 @@ fn show_ladder_levels(
             None => {
                 commands
                     .entity(entry.entity)
-                    .insert(Mesh3d(level.mesh.clone()));
+                    .try_insert(Mesh3d(level.mesh.clone()));
             }
         }
     }

@@ -125,7 +125,7 @@ pub(super) fn ladders_from_lod_names(
         // Done once found and decided: a scene spawned later under the same root would
         // otherwise be looked at again, and a refused group warned about again.
         if found && !root_waits {
-            commands.entity(root).remove::<LadderFromLodNames>();
+            commands.entity(root).try_remove::<LadderFromLodNames>();
         }
     }
 }
@@ -205,10 +205,10 @@ fn make_ladders(
         ladders.push((primitives[0][primitive], ladder));
     }
     for (entity, ladder) in ladders {
-        commands.entity(entity).insert(ladder);
+        commands.entity(entity).try_insert(ladder);
     }
     for &(_, node) in &levels[1..] {
-        commands.entity(node).insert(Visibility::Hidden);
+        commands.entity(node).try_insert(Visibility::Hidden);
     }
     GroupOutcome::Made
 }

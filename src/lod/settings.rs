@@ -63,9 +63,12 @@ pub struct FrameBudget {
     pub strategy: StrategyKind,
     /// Value function. Default: [`ValueFunction::P11`].
     pub value: ValueFunction,
-    /// Importance of trunks. Default: `1.0`.
+    /// Importance of trunks. Default: `1.0`. A value that is not finite or is negative
+    /// is taken as the default, and both 0 as both defaults, with a warning
+    /// ([`importances`](Self::importances)).
     pub trunk_importance: f32,
-    /// Importance of leaves, as in the paper. Default: `0.0625` (1/16).
+    /// Importance of leaves, as in the paper. Default: `0.0625` (1/16). See
+    /// `trunk_importance`.
     pub leaf_importance: f32,
     /// Line widths in pixels. Default: `PixelRange { min: 1, max: 20 }`.
     pub line_widths: PixelRange,
@@ -95,6 +98,32 @@ impl Default for FrameBudget {
             point_sizes: PixelRange::default(),
             far_refresh: 1,
         }
+    }
+}
+
+impl FrameBudget {
+    /// The trunk and leaf importances the Value stage uses, and whether they differ from
+    /// the ones set: each as set when finite and not negative, else its default; both at
+    /// their defaults when both are 0 (no tree would be worth any time, and every one
+    /// would stay at its cheapest however much time there is).
+    pub fn importances(&self) -> ([f32; 2], bool) {
+        let defaults = Self::default();
+        let valid = |v: f32, default: f32| {
+            if v.is_finite() && v >= 0.0 {
+                v
+            } else {
+                default
+            }
+        };
+        let mut used = [
+            valid(self.trunk_importance, defaults.trunk_importance),
+            valid(self.leaf_importance, defaults.leaf_importance),
+        ];
+        if used == [0.0, 0.0] {
+            used = [defaults.trunk_importance, defaults.leaf_importance];
+        }
+        let replaced = used != [self.trunk_importance, self.leaf_importance];
+        (used, replaced)
     }
 }
 

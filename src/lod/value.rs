@@ -98,7 +98,7 @@ pub(super) fn give_draw_lists(
     >,
 ) {
     for entity in &new {
-        commands.entity(entity).insert(TreeDrawList::default());
+        commands.entity(entity).try_insert(TreeDrawList::default());
     }
 }
 
@@ -205,8 +205,24 @@ pub(super) fn value_objects(
     version: Res<TreeModelsVersion>,
     mut ladders: ResMut<LadderObjects>,
     impostors: Res<GroupImpostors>,
+    mut importances_replaced: Local<bool>,
 ) {
     let start = Instant::now();
+    let ([trunk_importance, leaf_importance], replaced) = budget.importances();
+    if replaced && !*importances_replaced {
+        warn!(
+            "bevy_sherwood: FrameBudget's importances (trunk {}, leaves {}) are not usable \
+             (each finite and not negative, not both 0); valuing with trunk \
+             {trunk_importance}, leaves {leaf_importance}",
+            budget.trunk_importance, budget.leaf_importance
+        );
+    }
+    *importances_replaced = replaced;
+    let budget = &FrameBudget {
+        trunk_importance,
+        leaf_importance,
+        ..budget.clone()
+    };
     let frame = &mut *frame;
     frame.trees.clear();
     frame.groups.clear();
@@ -235,7 +251,7 @@ pub(super) fn value_objects(
         }
         value_trees(
             frame,
-            &budget,
+            budget,
             &cost_model,
             &culling,
             view,
@@ -246,7 +262,7 @@ pub(super) fn value_objects(
     }
     value_ladders(
         frame,
-        &budget,
+        budget,
         &cost_model,
         view,
         cull_view.map(|c| &c.0),

@@ -60,7 +60,7 @@ use crate::draw::{
     FrameChunks, GeometryAtlas, ModelSlot, PrimitiveCounts, PrimitiveKind, TreeDrawList,
     TreeShading,
 };
-use crate::instance::{ForestInstances, TreeInstance};
+use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::tree::{NO_RING, TreeModel, TreeModelsVersion};
 use crate::wind::RingOffsetTable;
 use batch::{CORNER_INDICES, DrawBatch};
@@ -263,6 +263,7 @@ fn extract_forest(
             &GlobalTransform,
             Option<&TreeDrawList>,
             Option<&TreeShading>,
+            (Has<FixedDrawList>, Option<&Transform>, Has<ChildOf>),
         )>,
     >,
     table: Extract<Option<Res<ForestInstances>>>,
@@ -301,22 +302,34 @@ fn extract_forest(
     frame.chunks.clear();
     frame.ring_offsets.clear();
     frame.counts = PrimitiveCounts::default();
-    let mut full;
-    for (entity, instance, transform, list, shading) in &trees {
+    let mut unlisted;
+    for (entity, instance, global, list, shading, (fixed, local, has_parent)) in &trees {
         let (Some(slot), Some(model)) = (
             frame.slots.get(&instance.model.id()),
             models.get(&instance.model),
         ) else {
             continue;
         };
+        let mut affine = global.affine();
         let list = match list {
             Some(list) => list,
+            None if fixed => {
+                unlisted = TreeDrawList::full(model);
+                &unlisted
+            }
             None => {
-                full = TreeDrawList::full(model);
-                &full
+                // Spawned after the Sherwood stages (in `Last`, say): no list yet, and a
+                // root's global transform not propagated yet either.
+                if let (Some(local), false) = (local, has_parent) {
+                    affine = local.compute_affine();
+                }
+                unlisted = TreeDrawList::coarsest(model);
+                &unlisted
             }
         };
-        if list.is_empty() {
+        // A tree the instance table left out for its transform keeps the last list it
+        // was given; it is not drawn where it cannot be.
+        if list.is_empty() || !affine.is_finite() {
             continue;
         }
         let index = frame.instances.len() as u32;
@@ -333,7 +346,6 @@ fn extract_forest(
                     .extend(slice.iter().map(|o| o.extend(0.0).to_array()));
             }
         }
-        let affine = transform.affine();
         let (m, t) = (affine.matrix3, affine.translation);
         let shading = shading
             .copied()
