@@ -17,13 +17,16 @@
 //! `--height H` (default 960×540), `--msaa 1|2|4|8` (default 4, Bevy's), `--props` (the
 //! `gltf_props` example's 40 glTF rocks with `_LOD` levels in front of the forest),
 //! `--step-ms S` (S ms of game logic in `Update` from a third of the frames to two
-//! thirds), `--spawn-spheres N` (N PBR spheres spawned a third of the way through); the
-//! line reports the frames over 1.1 × target among the 20 after each event.
+//! thirds), `--spawn-spheres N` (N PBR spheres of radius 0.5 spawned a third of the way
+//! through); the
+//! line reports the frames over 1.1 × target among the 20 after each event; `--trace`
+//! prints a line per frame around each event.
 //! Prints one `user_app ...` line.
 
 use bevy::prelude::*;
 use bevy::window::WindowResolution;
 use bevy_sherwood::budget::deadline;
+use bevy_sherwood::cost::CostModel;
 use bevy_sherwood::prelude::*;
 
 #[derive(Resource, Clone, Debug)]
@@ -45,6 +48,9 @@ struct Options {
     /// `--spawn-spheres N`: N PBR spheres spawned in front of the camera a third of the
     /// way through.
     spawn_spheres: u32,
+    /// `--trace`: a line per frame around each event (the period, this frame's
+    /// prediction, the latest measured frame's logic, render and prediction).
+    trace: bool,
 }
 
 fn parse(args: &[String]) -> Result<Options, String> {
@@ -60,6 +66,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         props: false,
         step_ms: 0.0,
         spawn_spheres: 0,
+        trace: false,
     };
     let mut it = args.iter();
     while let Some(flag) = it.next() {
@@ -76,6 +83,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--props" => o.props = true,
             "--step-ms" => o.step_ms = number(value()?)?,
             "--spawn-spheres" => o.spawn_spheres = number(value()?)? as u32,
+            "--trace" => o.trace = true,
             "--mode" => {
                 o.mode = match value()?.as_str() {
                     "tclod" => LodMode::Tclod,
@@ -104,6 +112,9 @@ struct Measured {
     logic: f32,
     render: f32,
     floor: f32,
+    /// Sums of the predicted frame and of the app's own meshes' predicted rendering, ms.
+    predicted: f32,
+    app_meshes: f32,
     missed: usize,
 }
 
@@ -200,7 +211,7 @@ fn spawn_spheres(
         return;
     }
     *done = true;
-    let mesh = meshes.add(Sphere::new(1.0).mesh().uv(64, 32));
+    let mesh = meshes.add(Sphere::new(0.5).mesh().uv(64, 32));
     let material = materials.add(Color::srgb(0.8, 0.3, 0.2));
     for k in 0..options.spawn_spheres {
         let at = Vec3::new(
@@ -220,6 +231,7 @@ fn measure(
     options: Res<Options>,
     time: Res<Time<Real>>,
     lod: Res<LodDiagnostics>,
+    model: Res<CostModel>,
     stats: Res<ForestRenderStats>,
     mut measured: ResMut<Measured>,
     mut exit: MessageWriter<AppExit>,
@@ -239,10 +251,33 @@ fn measure(
     let period = time.delta_secs();
     let c = lod.counts;
     measured.periods.push(period);
+    let k = measured.periods.len();
+    let (start, end) = events(&options);
+    if options.trace
+        && (start.saturating_sub(3)..start + 20)
+            .chain(end.saturating_sub(3)..end + 20)
+            .any(|e| e + 1 == k)
+    {
+        println!(
+            "trace frame={} period_ms={:.1} predicted_ms={:.1} logic_so_far_ms={:.1} app_meshes_ms={:.1} measured_frame={} measured_ms={:.1} measured_logic_ms={:.1} measured_render_ms={:.1} measured_predicted_ms={:.1}",
+            k - 1,
+            period * 1000.0,
+            lod.predicted_frame_ms,
+            lod.logic_so_far_ms,
+            lod.app_meshes_ms,
+            lod.measured_frame,
+            lod.measured_frame_ms,
+            lod.measured_logic_ms,
+            lod.measured_render_ms,
+            lod.measured_frame_predicted_ms,
+        );
+    }
     measured.primitives.push(c.triangles + c.lines + c.points);
     measured.logic += lod.measured_logic_ms;
     measured.render += lod.measured_render_ms;
     measured.floor += lod.floor_ms;
+    measured.predicted += lod.predicted_frame_ms;
+    measured.app_meshes += lod.app_meshes_ms;
     if let Some(hz) = options.vsync_hz {
         let p = 1.0 / hz;
         let allowed = deadline::allowed_periods(options.target_ms / 1000.0, p);
@@ -284,7 +319,7 @@ fn measure(
             .count()
     };
     println!(
-        "user_app vsync_hz={} target_ms={} frames={} mean_ms={mean:.2} std_over_mean={:.4} over_1.1_pct={:.2} missed_vblank_pct={:.2} primitives={primitives:.0} spread={:.4} work_target_ms={:.2} logic_ms={:.2} render_ms={:.2} floor_ms={:.2} primitives_swing={swing:.4} over_after_start={} over_after_end={}",
+        "user_app vsync_hz={} target_ms={} frames={} mean_ms={mean:.2} std_over_mean={:.4} over_1.1_pct={:.2} missed_vblank_pct={:.2} primitives={primitives:.0} spread={:.4} work_target_ms={:.2} logic_ms={:.2} render_ms={:.2} floor_ms={:.2} primitives_swing={swing:.4} over_after_start={} over_after_end={} predicted_ms={:.2} app_meshes_ms={:.2} mesh_pixel_ns={:.1}",
         options.vsync_hz.unwrap_or(0.0),
         options.target_ms,
         ms.len(),
@@ -298,6 +333,9 @@ fn measure(
         measured.floor / n as f32,
         over_after(start),
         over_after(end),
+        measured.predicted / n as f32,
+        measured.app_meshes / n as f32,
+        model.learned().mesh_pixel_ns,
     );
     exit.write(AppExit::Success);
 }

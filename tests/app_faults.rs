@@ -219,3 +219,35 @@ fn importances_that_value_nothing_fall_back_to_the_defaults() {
         );
     }
 }
+
+/// A tree whose model never loads (a handle nothing will ever fill) is named once it has
+/// been loading for `LOADING_WARNING_SECS`, and the forest beside it is drawn.
+#[test]
+fn a_model_that_never_loads_is_reported() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_sherwood::culling::{ForestCulling, LOADING_WARNING_SECS};
+    let (mut app, _, size) = forest_in_view(60);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(
+        std::time::Duration::from_millis(500),
+    ));
+    let never = app.world().resource::<Assets<TreeModel>>().reserve_handle();
+    app.world_mut().spawn((
+        TreeInstance::new(never),
+        Transform::from_xyz(0.5 * size, 0.0, 0.5 * size),
+    ));
+    let stuck = |app: &App| {
+        app.world()
+            .resource::<ForestCulling>()
+            .models_stuck_loading()
+    };
+    let updates = (LOADING_WARNING_SECS / 0.5) as usize;
+    for _ in 0..updates / 2 {
+        app.update();
+    }
+    assert_eq!(stuck(&app), 0, "reported before its time");
+    for _ in 0..updates {
+        app.update();
+    }
+    assert_eq!(stuck(&app), 1);
+    assert!(app.world().resource::<LodDiagnostics>().visible_instances > 0);
+}

@@ -318,8 +318,9 @@ struct Reports {
 }
 
 /// Set in the render world by a renderer that was asked to draw something this frame and
-/// could not (a pipeline still compiling): the frame's times are not a real frame's.
-/// Cleared when the render world starts a frame.
+/// could not (a pipeline still compiling), and whenever any render pipeline is still
+/// compiling (for at most [`COMPILING_SECONDS`]): the frame's times are not a real
+/// frame's. Cleared when the render world starts a frame.
 #[derive(Resource, Debug, Default)]
 pub struct DrawIncomplete(pub bool);
 
@@ -456,6 +457,9 @@ fn build_render(app: &mut App) {
                 end_acquire
                     .in_set(RenderSystems::PrepareViews)
                     .after(prepare_windows),
+                note_compiling_pipelines
+                    .in_set(RenderSystems::Render)
+                    .after(bevy::render::renderer::render_system),
                 end_work
                     .after(RenderSystems::Render)
                     .before(RenderSystems::Cleanup),
@@ -463,6 +467,36 @@ fn build_render(app: &mut App) {
             ),
         );
     super::gpu_frame::build(render_app);
+}
+
+/// How long pipelines may keep compiling before their frames count as real again,
+/// seconds: a shader that never loads keeps its pipeline queued for ever, and the model
+/// must not stop learning for it.
+pub const COMPILING_SECONDS: f32 = 10.0;
+
+/// A frame rendered while some pipeline was still compiling is incomplete: what needs it
+/// (a material's first mesh, say) was not drawn, and its time is not the scene's.
+#[cfg(feature = "render")]
+fn note_compiling_pipelines(
+    cache: Res<bevy::render::render_resource::PipelineCache>,
+    mut incomplete: ResMut<DrawIncomplete>,
+    mut since: Local<Option<Instant>>,
+) {
+    use bevy::render::render_resource::CachedPipelineState;
+    let compiling = cache.pipelines().any(|p| {
+        matches!(
+            p.state,
+            CachedPipelineState::Queued | CachedPipelineState::Creating(_)
+        )
+    });
+    if !compiling {
+        *since = None;
+        return;
+    }
+    let since = *since.get_or_insert_with(Instant::now);
+    if since.elapsed().as_secs_f32() < COMPILING_SECONDS {
+        incomplete.0 = true;
+    }
 }
 
 #[cfg(feature = "render")]

@@ -21,8 +21,8 @@ mod primitive;
 pub use calibration::*;
 pub use fit::*;
 pub use measure::{
-    DrawIncomplete, FrameBound, FrameClock, FrameEnd, FrameSample, FrameSamples, FrameStart,
-    GPU_WAIT_UPDATES, IDLE_THRESHOLD, WAIT_THRESHOLD,
+    COMPILING_SECONDS, DrawIncomplete, FrameBound, FrameClock, FrameEnd, FrameSample, FrameSamples,
+    FrameStart, GPU_WAIT_UPDATES, IDLE_THRESHOLD, WAIT_THRESHOLD,
 };
 pub use model::{
     CostModel, FrameOverlap, FramePrediction, LearnedCosts, LearnedFrame, LearningRates,

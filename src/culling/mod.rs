@@ -10,4 +10,6 @@ pub use hierarchy::{
 };
 #[cfg(feature = "render")]
 pub use plugin::FullyVisibleBoxes;
-pub use plugin::{CullView, CullingDebug, CullingPlugin, CullingSettings, ForestCulling};
+pub use plugin::{
+    CullView, CullingDebug, CullingPlugin, CullingSettings, ForestCulling, LOADING_WARNING_SECS,
+};

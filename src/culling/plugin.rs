@@ -33,6 +33,10 @@ pub struct ForestCulling {
     /// `(instance layout, models version, depth)` the hierarchy was built for.
     built: Option<(u64, u64, u32)>,
     loading: u32,
+    /// Since when (`Time<Real>` seconds) some model has been loading, and how many have
+    /// been loading for over [`LOADING_WARNING_SECS`].
+    loading_since: Option<f32>,
+    stuck: u32,
     failed_logged: Vec<AssetId<TreeModel>>,
     rebuilds: u64,
     refits: u64,
@@ -51,12 +55,23 @@ impl ForestCulling {
         self.loading
     }
 
+    /// How many models have been loading for over [`LOADING_WARNING_SECS`] (a handle
+    /// that never loads: a typo'd path the asset server still waits on, an asset added by
+    /// hand under a reserved handle that never came): their trees are not drawn, and a
+    /// warning names them once.
+    pub fn models_stuck_loading(&self) -> u32 {
+        self.stuck
+    }
+
     /// How many times the hierarchy was built, and how many times refitted for moved
     /// instances.
     pub fn rebuilds_and_refits(&self) -> (u64, u64) {
         (self.rebuilds, self.refits)
     }
 }
+
+/// A tree model still loading after this many seconds is warned about, once.
+pub const LOADING_WARNING_SECS: f32 = 10.0;
 
 /// How the box hierarchy is built.
 #[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
@@ -97,7 +112,7 @@ impl Plugin for CullingPlugin {
             .register_type::<CullingSettings>()
             .add_systems(
                 PostUpdate,
-                (rebuild_hierarchy, cull_forest)
+                (rebuild_hierarchy, warn_models_stuck_loading, cull_forest)
                     .chain()
                     .in_set(SherwoodSystems::Cull),
             );
@@ -131,6 +146,42 @@ impl Plugin for CullingPlugin {
         }
         #[cfg(not(feature = "render"))]
         let _ = app;
+    }
+}
+
+/// Counts, and names once, the models that have been loading for over
+/// [`LOADING_WARNING_SECS`].
+fn warn_models_stuck_loading(
+    mut culling: ResMut<ForestCulling>,
+    table: Res<ForestInstances>,
+    models: Res<Assets<TreeModel>>,
+    server: Res<AssetServer>,
+    time: Res<Time<Real>>,
+) {
+    if culling.loading == 0 {
+        culling.loading_since = None;
+        culling.stuck = 0;
+        return;
+    }
+    let now = time.elapsed_secs();
+    let since = *culling.loading_since.get_or_insert(now);
+    if culling.stuck > 0 || now - since < LOADING_WARNING_SECS {
+        return;
+    }
+    for (m, &id) in table.model_ids.iter().enumerate() {
+        if models.contains(id) || server.load_state(id).is_failed() {
+            continue;
+        }
+        let trees = table.models.iter().filter(|&&i| i as usize == m).count();
+        let name = server
+            .get_path(id)
+            .map_or_else(|| format!("{id:?}"), |path| format!("`{path}`"));
+        warn!(
+            "bevy_sherwood: tree {name} has not loaded in {LOADING_WARNING_SECS} s \
+             ({:?}); its {trees} trees are not drawn until it does",
+            server.load_state(id)
+        );
+        culling.stuck += 1;
     }
 }
 
