@@ -173,7 +173,7 @@ fn step(world: &mut World, frame: u64) {
         }
         let model = world
             .resource::<AssetServer>()
-            .load("species/elm.species.ron");
+            .load("species/broad.species.ron");
         let mut planted = Vec::new();
         for k in 0..5u64 {
             let t = ((frame / SPAWN_EVERY) * 5 + k) as f32 * 0.618_034;

@@ -58,7 +58,7 @@ fn a_tree_despawned_in_the_frame_it_was_spawned_does_not_panic() {
     for k in 0..3 {
         let tree = common::plant(
             &mut app,
-            "elm",
+            "broad",
             Vec3::new(0.3 * size, 0.0, 0.3 * size + k as f32),
         );
         app.world_mut().entity_mut(tree).insert(Doomed);
@@ -102,9 +102,9 @@ fn trees_at_nan_and_at_infinity_leave_the_forest_drawn() {
     }
     let visible = app.world().resource::<LodDiagnostics>().visible_instances;
     let in_table = app.world().resource::<ForestInstances>().len();
-    let nan = common::plant(&mut app, "elm", Vec3::NAN);
-    let far = common::plant(&mut app, "elm", Vec3::new(f32::INFINITY, 0.0, 0.0));
-    let huge = common::plant(&mut app, "elm", Vec3::new(0.0, 0.0, 1e30));
+    let nan = common::plant(&mut app, "broad", Vec3::NAN);
+    let far = common::plant(&mut app, "broad", Vec3::new(f32::INFINITY, 0.0, 0.0));
+    let huge = common::plant(&mut app, "broad", Vec3::new(0.0, 0.0, 1e30));
     for _ in 0..5 {
         app.update();
     }
@@ -159,17 +159,11 @@ fn unusable_learning_rates_do_not_stop_the_learning() {
         };
         app.update();
         for _ in 0..30 {
-            app.update();
-            let frame = app.world().resource::<LodDiagnostics>().frame;
-            let p = *app
-                .world()
-                .resource::<CostModel>()
-                .prediction(frame)
-                .unwrap();
+            let p = common::predicted_frame(&mut app);
             // A machine twice as slow as the calibration says.
             let render = 2.0 * p.render;
             let sample = bevy_sherwood::cost::FrameSample {
-                frame,
+                frame: p.frame,
                 logic: 0.005,
                 render,
                 interval: render + 0.006,

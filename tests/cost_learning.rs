@@ -107,13 +107,7 @@ impl Driver {
     }
 
     fn frame(&mut self, app: &mut App, truth: &Truth) -> (FramePrediction, FrameSample) {
-        app.update();
-        let frame = app.world().resource::<LodDiagnostics>().frame;
-        let prediction = *app
-            .world()
-            .resource::<CostModel>()
-            .prediction(frame)
-            .expect("every frame's prediction is kept until it is measured");
+        let prediction = common::predicted_frame(app);
         let sample = truth.sample(&prediction, (self.noise)());
         self.pending.push_back(sample);
         if self.pending.len() > 2 {
@@ -356,13 +350,7 @@ fn incomplete_and_absurd_frames_are_not_learned() {
     let before = app.world().resource::<CostModel>().learned();
     for k in 0..20 {
         vary(&mut app, size, k);
-        app.update();
-        let frame = app.world().resource::<LodDiagnostics>().frame;
-        let p = *app
-            .world()
-            .resource::<CostModel>()
-            .prediction(frame)
-            .unwrap();
+        let p = common::predicted_frame(&mut app);
         let mut sample = MACHINE.sample(&p, 1.0);
         match k % 4 {
             0 => sample.complete = false,
@@ -404,13 +392,7 @@ fn a_minimised_window_and_a_stall_are_not_learned() {
         .entity_mut(view)
         .remove::<(LodView, CullView)>();
     for _ in 0..10 {
-        app.update();
-        let frame = app.world().resource::<LodDiagnostics>().frame;
-        let p = *app
-            .world()
-            .resource::<CostModel>()
-            .prediction(frame)
-            .unwrap();
+        let p = common::predicted_frame(&mut app);
         assert_eq!(p.calibrated.total(), 0.0, "a frame without a view drew");
         let mut sample = MACHINE.sample(&p, 1.0);
         sample.render = 1e-4;
@@ -419,13 +401,7 @@ fn a_minimised_window_and_a_stall_are_not_learned() {
     }
     vary(&mut app, size, 0);
     for stall in [10.0, 3.0, 30.0] {
-        app.update();
-        let frame = app.world().resource::<LodDiagnostics>().frame;
-        let p = *app
-            .world()
-            .resource::<CostModel>()
-            .prediction(frame)
-            .unwrap();
+        let p = common::predicted_frame(&mut app);
         let mut sample = MACHINE.sample(&p, 1.0);
         sample.render = stall;
         sample.interval = stall;
@@ -452,24 +428,18 @@ fn a_gpu_bound_frame_is_predicted_by_its_gpu_time_reported_two_frames_late() {
         let mut errors = Vec::new();
         for k in 0..400 {
             vary(&mut app, size, k);
-            app.update();
-            let frame = app.world().resource::<LodDiagnostics>().frame;
-            let p = *app
-                .world()
-                .resource::<CostModel>()
-                .prediction(frame)
-                .expect("every frame's prediction is kept until it is measured");
+            let p = common::predicted_frame(&mut app);
             let gpu = MACHINE.render(&p);
             let logic = p.logic_so_far + MACHINE.logic(&p);
             pending.push_back(FrameSample {
-                frame,
+                frame: p.frame,
                 logic,
                 render: gpu / 3.0,
                 interval: logic.max(gpu) + MACHINE.sync,
                 complete: true,
                 ..Default::default()
             });
-            late_gpu.push_back((frame, gpu));
+            late_gpu.push_back((p.frame, gpu));
             let mut samples = app.world_mut().resource_mut::<FrameSamples>();
             if pending.len() > 2 {
                 let sample = pending.pop_front().unwrap();

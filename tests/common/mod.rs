@@ -180,6 +180,17 @@ pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
     }
 }
 
+/// Runs one frame and returns the cost model's prediction of it (kept until the frame is
+/// measured).
+pub fn predicted_frame(app: &mut App) -> bevy_sherwood::cost::FramePrediction {
+    app.update();
+    let frame = app.world().resource::<LodDiagnostics>().frame;
+    *app.world()
+        .resource::<CostModel>()
+        .prediction(frame)
+        .expect("every frame's prediction is kept until it is measured")
+}
+
 /// Updates until the LOD stages see a tree (bounded).
 pub fn until_visible(app: &mut App) {
     for _ in 0..20_000 {
