@@ -653,8 +653,12 @@ fn setup(
             return;
         }
     };
-    if let Some(total) = options.trees {
-        desc.set_total_trees(total);
+    if let Some(total) = options.trees
+        && let Err(e) = desc.set_total_trees(total)
+    {
+        eprintln!("forest: {path}: --trees {total}: {e}");
+        exit.write(AppExit::error());
+        return;
     }
     if let Some(seed) = options.seed {
         desc.seed = seed;

@@ -106,7 +106,8 @@ fn setup(world: &mut World) -> Handle<Image> {
     ))
     .expect("the default forest ships with the crate");
     let mut desc = EcosystemDesc::from_ron_str(&text).expect("the default forest parses");
-    desc.set_total_trees(60);
+    desc.set_total_trees(60)
+        .expect("the default forest has trees to scale");
     let forest = world
         .resource_mut::<Assets<Ecosystem>>()
         .add(Ecosystem(desc));

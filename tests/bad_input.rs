@@ -243,7 +243,7 @@ fn pixel_ranges_are_sanitized_not_trusted() {
 fn a_large_forest_places_in_near_linear_work() {
     // 250 000 trees: the old placement scanned the grid per tree (about 10¹¹ steps here).
     let mut desc = EcosystemDesc::from_ron_str(&asset("forests/default.ecosystem.ron")).unwrap();
-    desc.set_total_trees(250_000);
+    desc.set_total_trees(250_000).unwrap();
     let layout = desc.layout().unwrap();
     assert_eq!(layout.instances.len(), desc.instance_count());
     assert!(

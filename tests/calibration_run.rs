@@ -34,7 +34,8 @@ fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
         });
     windowless::finish_plugins(&mut app);
     let mut desc = common::default_ecosystem();
-    desc.set_total_trees(60);
+    desc.set_total_trees(60)
+        .expect("the default forest has trees to scale");
     common::spawn_forest(&mut app, desc);
     common::image_camera(
         &mut app,

@@ -255,6 +255,28 @@ mod malformed {
             "species[0].instances[0].scale: must be positive, at most 1000"
         );
     }
+
+    #[test]
+    fn two_hand_placed_trees_in_one_place() {
+        let e = error(&format!(
+            r#"({MATERIALS}, {GOOD_TERRAIN}, species: [
+                (tree: "t", instances: [(position: (3.0, 4.0)), (position: (9.0, 9.0))]),
+                (tree: "u", instances: [(position: (5.0, 5.0)), (position: (3.004, 4.0))]),
+            ])"#
+        ));
+        assert!(
+            e.starts_with("species[1].instances[1].position: (")
+                && e.ends_with("of species[0].instances[0]: two trees in one place"),
+            "{e}"
+        );
+        // A few centimetres apart is a choice, not a typing slip.
+        let ok = EcosystemDesc::from_ron_str(&format!(
+            r#"({MATERIALS}, {GOOD_TERRAIN}, species: [
+                (tree: "t", instances: [(position: (3.0, 4.0)), (position: (3.02, 4.0))]),
+            ])"#
+        ));
+        assert!(ok.is_ok(), "{ok:?}");
+    }
 }
 
 #[test]
@@ -263,7 +285,7 @@ fn a_new_total_keeps_the_species_proportions_and_the_density() {
     let before: u32 = original.species.iter().map(|s| s.count).sum();
     for total in [0, 1, 61, 1000, 2000] {
         let mut desc = original.clone();
-        desc.set_total_trees(total);
+        desc.set_total_trees(total).unwrap();
         let counts: Vec<u32> = desc.species.iter().map(|s| s.count).collect();
         assert_eq!(counts.iter().sum::<u32>(), total);
         for (s, o) in desc.species.iter().zip(&original.species) {
@@ -276,6 +298,23 @@ fn a_new_total_keeps_the_species_proportions_and_the_density() {
         let density = |d: &EcosystemDesc, n: u32| n as f32 / (d.terrain.size * d.terrain.size);
         if total > 0 {
             assert!((density(&desc, total) / density(&original, before) - 1.0).abs() < 1e-4);
+        } else {
+            assert_eq!(desc.terrain.size, original.terrain.size);
         }
     }
+}
+
+#[test]
+fn counts_that_are_all_zero_cannot_be_scaled() {
+    let mut desc = shipped("default");
+    for s in &mut desc.species {
+        s.count = 0;
+    }
+    let before = desc.clone();
+    let e = desc.set_total_trees(500).unwrap_err().to_string();
+    assert!(
+        e.starts_with("species[..].count: every species places 0 trees: cannot be scaled to 500"),
+        "{e}"
+    );
+    assert_eq!(desc, before, "a refused total changed the description");
 }

@@ -13,7 +13,8 @@ const EYE: Vec3 = Vec3::new(-5.0, 20.0, -5.0);
 /// The default ecosystem with `trees` trees, its seed moved by `seed_offset`.
 fn other_forest(trees: u32, seed_offset: u64) -> bevy_sherwood::ecosystem::EcosystemDesc {
     let mut desc = common::default_ecosystem();
-    desc.set_total_trees(trees);
+    desc.set_total_trees(trees)
+        .expect("the default forest has trees to scale");
     desc.seed = desc.seed.wrapping_add(seed_offset);
     desc
 }

@@ -15,6 +15,10 @@ use crate::rng::SplitMix64;
 /// model's size.
 pub const MAX_SCALE: f32 = 1000.0;
 
+/// How close two hand-placed instances may stand, metres: closer, an ecosystem is
+/// refused as one position typed twice.
+pub const MIN_HAND_PLACED_SPACING: f32 = 0.01;
+
 /// A Blinn-Phong material (thesis §3.1); colours are linear RGB.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -185,9 +189,23 @@ pub struct EcosystemLayout {
 impl EcosystemDesc {
     /// Sets the total number of trees to `total`, split across the species in the file's
     /// proportions (the last species takes the rounding), and grows or shrinks the terrain
-    /// so the forest keeps its density.
-    pub fn set_total_trees(&mut self, total: u32) {
-        let sum: u32 = self.species.iter().map(|s| s.count).sum::<u32>().max(1);
+    /// so the forest keeps its density (a total of 0 leaves the terrain as it is).
+    ///
+    /// # Errors
+    /// A file whose rule-placed counts are all 0 has no proportions to split by nor a
+    /// density to keep: it is refused (naming `species[..].count`) rather than given to
+    /// one species on a terrain grown without bound.
+    pub fn set_total_trees(&mut self, total: u32) -> Result<(), EcosystemError> {
+        let sum: u32 = self.species.iter().map(|s| s.count).sum();
+        if sum == 0 {
+            return Err(invalid(
+                "species[..].count".into(),
+                format!(
+                    "every species places 0 trees: cannot be scaled to {total} trees \
+                     (give the species counts in the proportions wanted)"
+                ),
+            ));
+        }
         let n = self.species.len();
         let mut given = 0;
         for (i, s) in self.species.iter_mut().enumerate() {
@@ -198,7 +216,11 @@ impl EcosystemDesc {
             };
             given += s.count;
         }
-        self.terrain.size *= (total as f32 / sum as f32).sqrt();
+        // No trees have no density to keep: the terrain stays as it was.
+        if total > 0 {
+            self.terrain.size *= (total as f32 / sum as f32).sqrt();
+        }
+        Ok(())
     }
 
     /// Parses and validates an ecosystem description.
@@ -319,6 +341,38 @@ impl EcosystemDesc {
         }
         if self.instance_count() > 10_000_000 {
             return Err(invalid("species".into(), "more than 10 million instances"));
+        }
+        self.validate_hand_placed_spacing()
+    }
+
+    /// Two hand-placed trees closer than [`MIN_HAND_PLACED_SPACING`] are one position
+    /// typed twice (a copied line): drawn, they would stand inside each other.
+    fn validate_hand_placed_spacing(&self) -> Result<(), EcosystemError> {
+        let mut placed: Vec<(f32, f32, usize, usize)> = Vec::new();
+        for (i, s) in self.species.iter().enumerate() {
+            for (k, inst) in s.instances.iter().enumerate() {
+                if let Some((x, z)) = inst.position {
+                    placed.push((x, z, i, k));
+                }
+            }
+        }
+        placed.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (n, &(x, z, i, k)) in placed.iter().enumerate() {
+            let near = placed[n + 1..]
+                .iter()
+                .take_while(|p| p.0 - x < MIN_HAND_PLACED_SPACING)
+                .find(|p| (p.0 - x).hypot(p.1 - z) < MIN_HAND_PLACED_SPACING);
+            if let Some(&(_, _, j, l)) = near {
+                let (first, second) = ((i, k).min((j, l)), (i, k).max((j, l)));
+                return Err(invalid(
+                    format!("species[{}].instances[{}].position", second.0, second.1),
+                    format!(
+                        "({x}, {z}) is within {MIN_HAND_PLACED_SPACING} m of \
+                         species[{}].instances[{}]: two trees in one place",
+                        first.0, first.1
+                    ),
+                ));
+            }
         }
         Ok(())
     }

@@ -11,7 +11,7 @@ mod terrain_material;
 
 pub use desc::{
     EcosystemDesc, EcosystemError, EcosystemLayout, InstanceDesc, InstanceLayout, MAX_SCALE,
-    MaterialDesc, SpeciesEntry,
+    MIN_HAND_PLACED_SPACING, MaterialDesc, SpeciesEntry,
 };
 pub use placement::{Angles, Placement, Tilt, tilt_from_normal};
 pub use plugin::{
