@@ -229,6 +229,13 @@ fn spawn_tree(world: &mut World, model: TreeModel, list: Option<TreeDrawList>) -
     entity.id()
 }
 
+/// A tree drawn at full detail. (Without a draw list it would be drawn at its coarsest
+/// until the LOD stages, which these apps do not have, chose one.)
+fn spawn_full_tree(world: &mut World, model: TreeModel) -> Entity {
+    let full = TreeDrawList::full(&model);
+    spawn_tree(world, model, Some(full))
+}
+
 fn only(list: impl FnOnce(&mut TreeDrawList)) -> TreeDrawList {
     let mut l = TreeDrawList::default();
     list(&mut l);
@@ -251,7 +258,7 @@ fn full_detail_covers_the_pixels_of_the_standard_renderer() {
     let (ours, stats) = render("full_detail_pass", eye, target, {
         let model = model.clone();
         move |world| {
-            spawn_tree(world, model, None);
+            spawn_full_tree(world, model);
         }
     });
     assert_eq!(stats.instances, 1);
@@ -637,7 +644,7 @@ fn every_camera_draws_the_forest_from_its_own_eye() {
     let front = (Vec3::new(0.0, 4.0, 14.0), Vec3::new(0.0, 4.0, 0.0));
     let side = (Vec3::new(14.0, 4.0, 0.0), Vec3::new(0.0, 4.0, 0.0));
     let (pictures, stats) = render_views("two_views", &[front, side], move |world| {
-        spawn_tree(world, model, None);
+        spawn_full_tree(world, model);
     });
     assert_eq!(stats.views, 2);
     let (a, b) = (&pictures[0], &pictures[1]);
@@ -671,13 +678,13 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
     let still = {
         let model = model.clone();
         render("wind_still", eye, target, move |world| {
-            spawn_tree(world, model, None);
+            spawn_full_tree(world, model);
         })
         .0
     };
     let (moved, _) = render("wind_moved", eye, target, move |world| {
         // The only tree: instance 0 of the instance table, whose order the offsets follow.
-        spawn_tree(world, model, None);
+        spawn_full_tree(world, model);
         world.insert_resource(RingOffsetTable {
             offsets,
             starts: vec![0, rings as u32],

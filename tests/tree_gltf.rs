@@ -123,6 +123,84 @@ fn trunk_and_leaves_are_told_apart_by_material_name() {
     assert_eq!(m.leaf_color, [0.1, 0.5, 0.1]);
 }
 
+/// [`glb`] with a "Ground" node: the leaf quad re-used under a bark material, laid flat
+/// at the trunk's foot (y = -0.5) and scaled `scale` times (0.3 m × `scale` wide).
+fn glb_with_ground(scale: f32) -> Vec<u8> {
+    edited_glb(Vec3::ZERO, "Leaves", |json| {
+        let ground = format!(
+            r#"{{"name":"Crown","mesh":1}},{{"name":"Ground","mesh":2,"translation":[{},-0.5,{}],"rotation":[-0.7071068,0,0,0.7071068],"scale":[{scale},{scale},{scale}]}}]"#,
+            -0.65 * scale,
+            2.65 * scale
+        );
+        let replaced = json
+            .replace(r#""nodes":[0,1]"#, r#""nodes":[0,1,2]"#)
+            .replace(r#"{"name":"Crown","mesh":1}]"#, &ground)
+            .replace(
+                r#""material":1}]}],"#,
+                r#""material":1}]},{"name":"Plane","primitives":[{"attributes":{"POSITION":2},"indices":3,"material":0}]}],"#,
+            );
+        assert_eq!(replaced.matches("Plane").count(), 1, "{replaced}");
+        assert_eq!(replaced.matches("Ground").count(), 1, "{replaced}");
+        replaced
+    })
+}
+
+#[test]
+fn a_ground_plane_exported_with_the_tree_is_left_out_with_a_warning() {
+    let plain = import_gltf(
+        &glb(Vec3::ZERO, "Leaves"),
+        &GltfTreeSettings::default(),
+        &HashMap::new(),
+    )
+    .unwrap();
+    let with_ground = import_gltf(
+        &glb_with_ground(20.0),
+        &GltfTreeSettings::default(),
+        &HashMap::new(),
+    )
+    .unwrap();
+    assert_eq!(with_ground.model, plain.model, "the plane changed the tree");
+    let ground: Vec<_> = with_ground
+        .warnings
+        .iter()
+        .filter_map(|w| match w {
+            AnalysisWarning::GroundPlaneLeftOut { mesh, width } => Some((mesh.as_str(), *width)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(ground.len(), 1, "{:?}", with_ground.warnings);
+    assert_eq!(ground[0].0, "Plane");
+    assert!((ground[0].1 - 6.0).abs() < 1e-3, "{ground:?}");
+
+    // Named as skipped, it is left out without a word.
+    let settings = GltfTreeSettings {
+        skip_keywords: vec!["plane".into()],
+        ..Default::default()
+    };
+    let skipped = import_gltf(&glb_with_ground(20.0), &settings, &HashMap::new()).unwrap();
+    assert_eq!(skipped.model, plain.model);
+    assert_eq!(skipped.warnings, plain.warnings);
+
+    // A flat quad a tenth of the tree's height wide is not a ground plane: it stays.
+    let small = import_gltf(
+        &glb_with_ground(1.0),
+        &GltfTreeSettings::default(),
+        &HashMap::new(),
+    );
+    if let Ok(small) = small {
+        assert_ne!(
+            small.model, plain.model,
+            "a small flat primitive was dropped"
+        );
+        assert!(
+            !small
+                .warnings
+                .iter()
+                .any(|w| matches!(w, AnalysisWarning::GroundPlaneLeftOut { .. }))
+        );
+    }
+}
+
 #[test]
 fn node_transforms_are_applied() {
     let m = import_gltf(

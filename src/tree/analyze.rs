@@ -197,6 +197,15 @@ pub enum AnalysisWarning {
         /// How many.
         count: usize,
     },
+    /// A flat, wide primitive under the tree's foot was taken for a ground plane
+    /// exported with the tree and left out (name it with one of
+    /// `GltfTreeSettings::skip_keywords` to leave it out without a warning).
+    GroundPlaneLeftOut {
+        /// Its mesh's name.
+        mesh: String,
+        /// Its width, in the file's units.
+        width: f32,
+    },
 }
 
 /// Settings of [`analyze`]; glTF users set them through

@@ -16,8 +16,10 @@ use bevy::math::{Mat3, Mat4, Vec3};
 use bevy::reflect::TypePath;
 use serde::{Deserialize, Serialize};
 
-use super::analyze::{AnalysisOptions, MeshData, TreeAnalysis, TreeAnalysisError, analyze};
-use super::model::{LinearRgb, TreeModel};
+use super::analyze::{
+    AnalysisOptions, AnalysisWarning, MeshData, TreeAnalysis, TreeAnalysisError, analyze,
+};
+use super::model::{Bounds, LinearRgb, TreeModel};
 
 /// How a glTF file is split into trunk and leaves and analysed: the [`GltfTreeLoader`]'s
 /// settings.
@@ -152,6 +154,27 @@ pub enum GltfTreeError {
     Io(String),
 }
 
+/// One triangle primitive of the scene, in world space.
+struct Primitive {
+    /// Its mesh's name, for errors and warnings.
+    mesh: String,
+    /// Classified as leaves by [`GltfTreeSettings::leaf_keywords`].
+    leaf: bool,
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    /// Into `positions`.
+    indices: Vec<u32>,
+    /// Its material's base colour when untextured.
+    color: Option<Vec3>,
+}
+
+impl Primitive {
+    fn bounds(&self) -> Bounds {
+        Bounds::from_points(self.positions.iter().copied())
+    }
+}
+
+/// A trunk or the leaves: the primitives classified so, merged.
 #[derive(Default)]
 struct Part {
     positions: Vec<Vec3>,
@@ -162,9 +185,84 @@ struct Part {
 }
 
 impl Part {
+    fn add(&mut self, primitive: &Primitive) {
+        let first = self.positions.len() as u32;
+        self.indices
+            .extend(primitive.indices.iter().map(|i| first + i));
+        self.positions.extend_from_slice(&primitive.positions);
+        self.normals.extend_from_slice(&primitive.normals);
+        if let Some(color) = primitive.color {
+            let weight = primitive.positions.len() as f32;
+            self.color_sum += color * weight;
+            self.color_weight += weight;
+        }
+    }
+
     fn color(&self) -> Option<LinearRgb> {
         (self.color_weight > 0.0).then(|| (self.color_sum / self.color_weight).to_array())
     }
+
+    fn mesh_data(&self) -> MeshData<'_> {
+        MeshData {
+            positions: &self.positions,
+            normals: Some(&self.normals),
+            indices: &self.indices,
+            color: self.color(),
+        }
+    }
+}
+
+/// How flat a primitive must be to be taken for a ground plane: its height at most this
+/// share of its width.
+const GROUND_FLATNESS: f32 = 0.01;
+/// How wide, as a share of the rest of the tree's height: a trunk's flat base cap is far
+/// narrower.
+const GROUND_MIN_WIDTH: f32 = 0.25;
+
+/// Takes out the ground planes exported with a tree (a modelling tool's default scene
+/// has one): trunk primitives that are flat and horizontal, lie at or below the foot of
+/// the rest of the tree, and are wider than [`GROUND_MIN_WIDTH`] of its height. Analysed
+/// as trunk, a plane would widen the tree's bounds to the plane's and make it a ring of
+/// its own. Returns each plane's mesh name and width; nothing is taken when no other
+/// trunk primitive would be left.
+fn take_ground_planes(primitives: &mut Vec<Primitive>) -> Vec<(String, f32)> {
+    let bounds: Vec<Bounds> = primitives.iter().map(Primitive::bounds).collect();
+    let flat: Vec<bool> = primitives
+        .iter()
+        .zip(&bounds)
+        .map(|(p, b)| {
+            let size = b.max - b.min;
+            let width = size.x.max(size.z);
+            !p.leaf && width > 0.0 && size.y <= GROUND_FLATNESS * width
+        })
+        .collect();
+    let rest = bounds
+        .iter()
+        .zip(&flat)
+        .filter(|(_, flat)| !**flat)
+        .fold(Bounds::EMPTY, |all, (b, _)| all.union(*b));
+    let other_trunk = primitives.iter().zip(&flat).any(|(p, f)| !p.leaf && !f);
+    let height = rest.max.y - rest.min.y;
+    if !other_trunk || !(height > 0.0) {
+        return Vec::new();
+    }
+    let is_ground = |b: &Bounds| {
+        let size = b.max - b.min;
+        b.max.y <= rest.min.y + 2.0 * GROUND_FLATNESS * height
+            && size.x.max(size.z) >= GROUND_MIN_WIDTH * height
+    };
+    let mut taken = Vec::new();
+    let mut k = 0;
+    primitives.retain(|p| {
+        let ground = flat[k] && is_ground(&bounds[k]);
+        if ground {
+            let size = bounds[k].max - bounds[k].min;
+            taken.push((p.mesh.clone(), size.x.max(size.z)));
+        }
+        k += 1;
+        !ground
+    });
+    taken
 }
 
 /// URIs of the external buffer files `bytes` refers to (not data URIs, not the GLB blob).
@@ -307,14 +405,48 @@ fn check_accessor(
 }
 
 /// Splits a glTF document into trunk and leaves and analyses them. `external` holds the
-/// bytes of the buffer files named by [`external_buffer_uris`].
+/// bytes of the buffer files named by [`external_buffer_uris`]. A ground plane exported
+/// with the tree is left out with a warning ([`AnalysisWarning::GroundPlaneLeftOut`]).
 pub fn import_gltf(
     bytes: &[u8],
     settings: &GltfTreeSettings,
     external: &HashMap<String, Vec<u8>>,
 ) -> Result<TreeAnalysis, GltfTreeError> {
     let gltf = parse(bytes)?;
-    let mut buffers: Vec<Vec<u8>> = Vec::new();
+    let buffers = read_buffers(&gltf, external)?;
+    let mut primitives = scene_primitives(&gltf, &buffers, settings)?;
+    if primitives.is_empty() {
+        return Err(GltfTreeError::NoMeshes);
+    }
+    let ground_planes = take_ground_planes(&mut primitives);
+    let (mut trunk, mut leaves) = (Part::default(), Part::default());
+    for primitive in &primitives {
+        if primitive.leaf {
+            leaves.add(primitive);
+        } else {
+            trunk.add(primitive);
+        }
+    }
+    if trunk.indices.is_empty() {
+        return Err(GltfTreeError::NoTrunk {
+            keywords: settings.leaf_keywords.clone(),
+        });
+    }
+    let mut analysis = analyze(&trunk.mesh_data(), &leaves.mesh_data(), &settings.analysis)?;
+    analysis.warnings.extend(
+        ground_planes
+            .into_iter()
+            .map(|(mesh, width)| AnalysisWarning::GroundPlaneLeftOut { mesh, width }),
+    );
+    Ok(analysis)
+}
+
+/// The bytes of every buffer: the GLB blob, data URIs, or `external` files.
+fn read_buffers(
+    gltf: &gltf::Gltf,
+    external: &HashMap<String, Vec<u8>>,
+) -> Result<Vec<Vec<u8>>, GltfTreeError> {
+    let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let fail = |uri: &str, reason: String| GltfTreeError::Buffer {
             index: buffer.index(),
@@ -348,7 +480,17 @@ pub fn import_gltf(
         }
         buffers.push(data);
     }
+    Ok(buffers)
+}
 
+/// Every triangle primitive of the default scene (or the first, or every node when there
+/// is no scene) not skipped by [`GltfTreeSettings::skip_keywords`], node transforms
+/// applied, classified as trunk or leaves.
+fn scene_primitives(
+    gltf: &gltf::Gltf,
+    buffers: &[Vec<u8>],
+    settings: &GltfTreeSettings,
+) -> Result<Vec<Primitive>, GltfTreeError> {
     let lower = |keywords: &[String]| -> Vec<String> {
         keywords
             .iter()
@@ -366,8 +508,7 @@ pub fn import_gltf(
             keywords.iter().any(|k| n.contains(k.as_str()))
         })
     };
-    let (mut trunk, mut leaves) = (Part::default(), Part::default());
-    let mut primitives = 0;
+    let mut primitives = Vec::new();
     // Each node with its world transform and whether an ancestor is skipped.
     let mut visit: Vec<(gltf::Node, Mat4, bool)> =
         match gltf.default_scene().or_else(|| gltf.scenes().next()) {
@@ -382,122 +523,116 @@ pub fn import_gltf(
         if skipped || matches(&skip_keywords, mesh.name()) {
             continue;
         }
-        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
         for primitive in mesh.primitives() {
             if matches(&skip_keywords, primitive.material().name()) {
                 continue;
             }
             let mesh_name = mesh.name().unwrap_or("(unnamed)").to_string();
-            if primitive.mode() != gltf::mesh::Mode::Triangles {
-                return Err(GltfTreeError::NotTriangles {
-                    mesh: mesh_name,
-                    mode: primitive.mode(),
-                });
-            }
-            primitives += 1;
             let leaf = matches(&leaf_keywords, node.name())
                 || matches(&leaf_keywords, mesh.name())
                 || matches(&leaf_keywords, primitive.material().name());
-            let part = if leaf { &mut leaves } else { &mut trunk };
-            use gltf::accessor::{DataType, Dimensions};
-            let Some(position_accessor) = primitive.get(&gltf::Semantic::Positions) else {
-                return Err(GltfTreeError::NoPositions { mesh: mesh_name });
-            };
-            let check = |accessor: &gltf::Accessor, attribute, dimensions, types: &[DataType]| {
-                check_accessor(accessor, &buffers, &mesh_name, attribute, dimensions, types)
-            };
-            check(
-                &position_accessor,
-                "POSITION",
-                Dimensions::Vec3,
-                &[DataType::F32],
-            )?;
-            // Normals are optional: any other kind is read as none.
-            let normals_valid = primitive.get(&gltf::Semantic::Normals).is_some_and(|a| {
-                check(&a, "NORMAL", Dimensions::Vec3, &[DataType::F32]).is_ok()
-                    && a.count() == position_accessor.count()
-            });
-            if let Some(indices) = primitive.indices() {
-                check(
-                    &indices,
-                    "indices",
-                    Dimensions::Scalar,
-                    &[DataType::U8, DataType::U16, DataType::U32],
-                )?;
-            }
-            let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-            let positions: Vec<Vec3> = reader
-                .read_positions()
-                .ok_or(GltfTreeError::NoPositions {
-                    mesh: mesh_name.clone(),
-                })?
-                .map(|p| world.transform_point3(Vec3::from(p)))
-                .collect();
-            let vertices = positions.len();
-            let first = part.positions.len() as u32;
-            match reader.read_normals().filter(|_| normals_valid) {
-                Some(normals) => part.normals.extend(normals.map(|n| {
-                    (normal_matrix * Vec3::from(n))
-                        .try_normalize()
-                        .unwrap_or(Vec3::Y)
-                })),
-                None => part.normals.extend(core::iter::repeat_n(Vec3::Y, vertices)),
-            }
-            match reader.read_indices() {
-                Some(indices) => {
-                    for i in indices.into_u32() {
-                        if i as usize >= vertices {
-                            return Err(GltfTreeError::IndexOutOfRange {
-                                mesh: mesh_name,
-                                value: i,
-                                vertices,
-                            });
-                        }
-                        part.indices.push(first + i);
-                    }
-                }
-                None => part.indices.extend(first..first + vertices as u32),
-            }
-            // A textured material's factor only tints its texture (EZ-Tree's leaves are
-            // white times a leaf picture), so it says nothing of the colour: such
-            // primitives leave the part to the untextured ones or the default colour.
-            // glTF keeps colours within 0–1; the `gltf` crate does not check.
-            let pbr = primitive.material().pbr_metallic_roughness();
-            if pbr.base_color_texture().is_none() {
-                let [r, g, b, _] = pbr.base_color_factor().map(|c| {
-                    if c.is_finite() {
-                        c.clamp(0.0, 1.0)
-                    } else {
-                        1.0
-                    }
-                });
-                part.color_sum += Vec3::new(r, g, b) * positions.len() as f32;
-                part.color_weight += positions.len() as f32;
-            }
-            part.positions.extend(positions);
+            primitives.push(read_primitive(&primitive, buffers, world, mesh_name, leaf)?);
         }
     }
-    if primitives == 0 {
-        return Err(GltfTreeError::NoMeshes);
-    }
-    if trunk.indices.is_empty() {
-        return Err(GltfTreeError::NoTrunk {
-            keywords: settings.leaf_keywords.clone(),
+    Ok(primitives)
+}
+
+/// One primitive's triangles in world space, its accessors checked first.
+fn read_primitive(
+    primitive: &gltf::Primitive,
+    buffers: &[Vec<u8>],
+    world: Mat4,
+    mesh: String,
+    leaf: bool,
+) -> Result<Primitive, GltfTreeError> {
+    use gltf::accessor::{DataType, Dimensions};
+    if primitive.mode() != gltf::mesh::Mode::Triangles {
+        return Err(GltfTreeError::NotTriangles {
+            mesh,
+            mode: primitive.mode(),
         });
     }
-    let trunk_data = MeshData {
-        positions: &trunk.positions,
-        normals: Some(&trunk.normals),
-        indices: &trunk.indices,
-        color: trunk.color(),
+    let Some(position_accessor) = primitive.get(&gltf::Semantic::Positions) else {
+        return Err(GltfTreeError::NoPositions { mesh });
     };
-    let leaf_data = MeshData {
-        positions: &leaves.positions,
-        normals: Some(&leaves.normals),
-        indices: &leaves.indices,
-        color: leaves.color(),
+    let check = |accessor: &gltf::Accessor, attribute, dimensions, types: &[DataType]| {
+        check_accessor(accessor, buffers, &mesh, attribute, dimensions, types)
     };
-    Ok(analyze(&trunk_data, &leaf_data, &settings.analysis)?)
+    check(
+        &position_accessor,
+        "POSITION",
+        Dimensions::Vec3,
+        &[DataType::F32],
+    )?;
+    // Normals are optional: any other kind is read as none.
+    let normals_valid = primitive.get(&gltf::Semantic::Normals).is_some_and(|a| {
+        check(&a, "NORMAL", Dimensions::Vec3, &[DataType::F32]).is_ok()
+            && a.count() == position_accessor.count()
+    });
+    if let Some(indices) = primitive.indices() {
+        check(
+            &indices,
+            "indices",
+            Dimensions::Scalar,
+            &[DataType::U8, DataType::U16, DataType::U32],
+        )?;
+    }
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    let Some(positions) = reader.read_positions() else {
+        return Err(GltfTreeError::NoPositions { mesh });
+    };
+    let positions: Vec<Vec3> = positions
+        .map(|p| world.transform_point3(Vec3::from(p)))
+        .collect();
+    let vertices = positions.len();
+    let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+    let normals = match reader.read_normals().filter(|_| normals_valid) {
+        Some(normals) => normals
+            .map(|n| {
+                (normal_matrix * Vec3::from(n))
+                    .try_normalize()
+                    .unwrap_or(Vec3::Y)
+            })
+            .collect(),
+        None => vec![Vec3::Y; vertices],
+    };
+    let indices = match reader.read_indices() {
+        Some(indices) => {
+            let indices: Vec<u32> = indices.into_u32().collect();
+            if let Some(&value) = indices.iter().find(|&&i| i as usize >= vertices) {
+                return Err(GltfTreeError::IndexOutOfRange {
+                    mesh,
+                    value,
+                    vertices,
+                });
+            }
+            indices
+        }
+        None => (0..vertices as u32).collect(),
+    };
+    // A textured material's factor only tints its texture (EZ-Tree's leaves are white
+    // times a leaf picture), so it says nothing of the colour: such primitives leave the
+    // part to the untextured ones or the default colour. glTF keeps colours within 0–1;
+    // the `gltf` crate does not check.
+    let pbr = primitive.material().pbr_metallic_roughness();
+    let color = pbr.base_color_texture().is_none().then(|| {
+        let [r, g, b, _] = pbr.base_color_factor().map(|c| {
+            if c.is_finite() {
+                c.clamp(0.0, 1.0)
+            } else {
+                1.0
+            }
+        });
+        Vec3::new(r, g, b)
+    });
+    Ok(Primitive {
+        mesh,
+        leaf,
+        positions,
+        normals,
+        indices,
+        color,
+    })
 }
 
 /// Loads `*.tree.glb` and `*.tree.gltf` files as [`TreeModel`]s.
