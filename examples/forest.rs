@@ -687,6 +687,12 @@ fn setup(
         Camera3d::default(),
         // Multisampling quadruples the rasteriser's work on a software renderer.
         Msaa::Off,
+        // Bevy's 1 km far plane would leave a large forest (`--trees 1000000`: 8 km wide)
+        // out of view from the edge where the camera starts: nothing visible is dropped.
+        Projection::Perspective(PerspectiveProjection {
+            far: PerspectiveProjection::default().far.max(2.0 * size),
+            ..default()
+        }),
         Transform::from_xyz(-0.1 * size, 25.0, -0.1 * size)
             .looking_at(Vec3::new(size * 0.5, 0.0, size * 0.5), Vec3::Y),
     ));

@@ -243,7 +243,7 @@ fn take_ground_planes(primitives: &mut Vec<Primitive>) -> Vec<(String, f32)> {
         .fold(Bounds::EMPTY, |all, (b, _)| all.union(*b));
     let other_trunk = primitives.iter().zip(&flat).any(|(p, f)| !p.leaf && !f);
     let height = rest.max.y - rest.min.y;
-    if !other_trunk || !(height > 0.0) {
+    if !other_trunk || height.is_nan() || height <= 0.0 {
         return Vec::new();
     }
     let is_ground = |b: &Bounds| {
