@@ -638,6 +638,42 @@ fn draw_ranges_change_exactly_the_pixels_they_name() {
     );
 }
 
+/// A tree the LOD stages have not seen (spawned in `Last`, or in an app without them, as
+/// here) is drawn at its coarsest, where its own `Transform` puts it: not at full detail,
+/// not at the origin.
+#[test]
+fn a_tree_without_a_draw_list_is_drawn_at_its_coarsest_where_it_stands() {
+    let model = species("slender");
+    let eye = Vec3::new(0.0, 4.0, 14.0);
+    let target = Vec3::new(0.0, 4.0, 0.0);
+    let aside = Vec3::new(3.0, 0.0, 0.0);
+    let (picture, stats) = render("unlisted_tree", eye, target, {
+        let model = model.clone();
+        move |world| {
+            let handle = world.resource_mut::<Assets<TreeModel>>().add(model);
+            world.spawn((
+                TreeInstance::standalone(handle),
+                Transform::from_translation(aside),
+            ));
+        }
+    });
+    let coarsest = TreeDrawList::coarsest(&model);
+    assert_eq!(stats.instances, 1);
+    assert_eq!(stats.counts, coarsest.counts(&model), "{stats:?}");
+    assert_ne!(stats.counts, TreeDrawList::full(&model).counts(&model));
+    let picture = &picture;
+    let lit: Vec<u32> = (0..SIZE)
+        .flat_map(|y| (0..SIZE).filter(move |&x| picture.lit(x, y)))
+        .collect();
+    assert!(lit.len() > 200, "only {} pixels drawn", lit.len());
+    let mean_x = lit.iter().sum::<u32>() as f32 / lit.len() as f32;
+    // 3 m aside at 14 m with a 45° field of view is about 66 pixels right of the middle.
+    assert!(
+        mean_x > SIZE as f32 / 2.0 + 40.0,
+        "the tree's pixels centre at x = {mean_x:.0} of {SIZE}"
+    );
+}
+
 #[test]
 fn every_camera_draws_the_forest_from_its_own_eye() {
     let model = species("slender");
