@@ -135,9 +135,9 @@ fn wind(c: &mut Criterion) {
             updated += frame.updated;
             ms += frame.update_ms;
         }
-        let rings = app.world().resource::<RingOffsetTable>().offsets.len();
+        let rings = app.world().resource::<RingOffsetTable>().rings_held();
         println!(
-            "{name}: {} candidates, {} moved ({} updated, {} held), {} skipped; {rings} rings in the forest; \
+            "{name}: {} candidates, {} moved ({} updated, {} held), {} skipped; {rings} rings held; \
              {:.2} µs per updated tree, {} updated per frame on average",
             stats.candidates,
             stats.moved,

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use bevy_sherwood::tree::{
-    AnalysisWarning, GltfTreeSettings, NO_RING, SpeciesDesc, TreeModel, external_buffer_uris,
+    AnalysisWarning, GltfTreeSettings, NO_RING, SpeciesDesc, TreeModel, external_buffers,
     import_gltf,
 };
 
@@ -112,10 +112,10 @@ fn load(
     if name.ends_with(".glb") || name.ends_with(".gltf") {
         let folder = path.parent().unwrap_or(Path::new("."));
         let mut external = HashMap::new();
-        for uri in external_buffer_uris(&bytes).map_err(|e| e.to_string())? {
-            let data = std::fs::read(folder.join(&uri))
-                .map_err(|e| format!("buffer {uri:?} beside the file: {e}"))?;
-            external.insert(uri, data);
+        for file in external_buffers(&bytes).map_err(|e| e.to_string())? {
+            let data = std::fs::read(folder.join(&file.path))
+                .map_err(|e| format!("buffer {:?} beside the file: {e}", file.uri))?;
+            external.insert(file.uri, data);
         }
         let analysis = import_gltf(&bytes, settings, &external).map_err(|e| e.to_string())?;
         Ok((analysis.model, analysis.warnings))

@@ -28,7 +28,7 @@ pub const POINTS_PER_CHUNK: u32 = 32;
 pub struct LineRun {
     /// Segment indices (into [`TreeModel::segments`]).
     pub segments: Range<u32>,
-    /// Line width in pixels (at least 1).
+    /// Line width in pixels, 1 to [`MAX_PRIMITIVE_PIXELS`] (drawn clamped to that).
     pub width: u32,
 }
 
@@ -37,7 +37,7 @@ pub struct LineRun {
 pub struct PointRun {
     /// Leaf indices (into [`TreeModel::leaves`]).
     pub leaves: Range<u32>,
-    /// Square side in pixels (at least 1).
+    /// Square side in pixels, 1 to [`MAX_PRIMITIVE_PIXELS`] (drawn clamped to that).
     pub size: u32,
 }
 
@@ -510,6 +510,18 @@ pub struct FrameChunks {
     pending: [Vec<(u32, u32, u32)>; 4],
 }
 
+/// What [`FrameChunks::mark`] remembers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChunksMark {
+    kinds: [usize; 4],
+    pending: [usize; 4],
+}
+
+/// The widest line and the largest point the pass draws, pixels: a wider width or a
+/// larger size in a draw list is drawn at this one. (The level of detail picks up to
+/// 20 pixels, where primitives stop paying for themselves against triangles.)
+pub const MAX_PRIMITIVE_PIXELS: u32 = 64;
+
 /// [`GpuChunk::instance`] of a chunk whose slots are listed in [`FrameChunks::gathered`]
 /// from [`GpuChunk::first`] on.
 pub const GATHERED: u32 = u32::MAX;
@@ -569,7 +581,7 @@ impl FrameChunks {
                 PrimitiveKind::Lines,
                 instance,
                 slot.lines + r.start..slot.lines + r.end,
-                run.width.max(1),
+                run.width.clamp(1, MAX_PRIMITIVE_PIXELS),
             );
         }
         for run in &list.leaf_points {
@@ -578,9 +590,45 @@ impl FrameChunks {
                 PrimitiveKind::Points,
                 instance,
                 slot.points + r.start..slot.points + r.end,
-                run.size.max(1),
+                run.size.clamp(1, MAX_PRIMITIVE_PIXELS),
             );
         }
+    }
+
+    /// Where the chunks stand now, to go back to with [`truncate`](Self::truncate).
+    pub fn mark(&self) -> ChunksMark {
+        ChunksMark {
+            kinds: self.kinds.each_ref().map(Vec::len),
+            pending: self.pending.each_ref().map(Vec::len),
+        }
+    }
+
+    /// Drops what was pushed since `mark` (before [`finish`](Self::finish)).
+    pub fn truncate(&mut self, mark: ChunksMark) {
+        for (kind, len) in self.kinds.iter_mut().zip(mark.kinds) {
+            kind.truncate(len);
+        }
+        for (pending, len) in self.pending.iter_mut().zip(mark.pending) {
+            pending.truncate(len);
+        }
+    }
+
+    /// The most chunks and gathered slots [`finish`](Self::finish) can leave with what
+    /// was pushed so far: the leftovers of each kind fill whole chunks but for one per
+    /// line width or point size ([`MAX_PRIMITIVE_PIXELS`] at most).
+    pub fn len_bound(&self) -> (usize, usize) {
+        let mut chunks = 0;
+        let mut gathered = 0;
+        for (kind, (done, pending)) in PrimitiveKind::ALL
+            .into_iter()
+            .zip(self.kinds.iter().zip(&self.pending))
+        {
+            // Parameters are line widths and point sizes (or the two triangle parts).
+            let params = pending.len().min(MAX_PRIMITIVE_PIXELS as usize);
+            chunks += done.len() + pending.len() / kind.per_chunk() as usize + params;
+            gathered += pending.len();
+        }
+        (chunks, gathered + self.gathered.len())
     }
 
     /// Chunks the gathered leftovers: per kind, by parameter, in the order they came.

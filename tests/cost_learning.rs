@@ -475,3 +475,42 @@ fn a_gpu_bound_frame_is_predicted_by_its_gpu_time_reported_two_frames_late() {
         final_error[1]
     );
 }
+
+/// With one still view the scene's mix does not change: a fixed part and per-primitive
+/// costs that rise and fall together predict every frame equally well. The pass's own
+/// time (the rendering minus the fixed part) tells them apart.
+#[test]
+fn a_still_view_learns_its_fixed_part_from_the_pass_time() {
+    let calibration = Calibration {
+        render_fixed: 4.0 * MACHINE.fixed,
+        ..Calibration::default()
+    };
+    let (mut app, size) = app(calibration);
+    common::look_from(
+        &mut app,
+        Vec3::new(-0.1 * size, 20.0, -0.1 * size),
+        Vec3::new(0.6 * size, 0.0, 0.7 * size),
+    );
+    app.world_mut().resource_mut::<FrameBudget>().target_ms = 60.0;
+    let mut uniform = common::unit_noise();
+    let mut pending = VecDeque::new();
+    for _ in 0..600 {
+        let prediction = common::predicted_frame(&mut app);
+        let noise = 1.0 + 0.02 * (2.0 * uniform() - 1.0);
+        pending.push_back((prediction, MACHINE.sample(&prediction, noise), noise));
+        if pending.len() > 2 {
+            let (p, sample, noise) = pending.pop_front().unwrap();
+            let pass = (MACHINE.render(&p) - MACHINE.speed * MACHINE.fixed) * noise;
+            let mut samples = app.world_mut().resource_mut::<FrameSamples>();
+            samples.push(sample);
+            samples.push_pass(pass);
+        }
+    }
+    let learned = app.world().resource::<CostModel>().learned();
+    let fixed = learned.render_fixed_ms / 1000.0;
+    assert!(
+        (fixed - MACHINE.fixed).abs() <= 0.1 * MACHINE.fixed,
+        "learned a fixed part of {fixed} s for {} s: {learned:?}",
+        MACHINE.fixed
+    );
+}

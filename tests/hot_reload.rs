@@ -5,9 +5,9 @@
 
 use std::time::{Duration, Instant};
 
-use bevy::asset::AssetPlugin;
+use bevy::asset::{AssetLoadFailedEvent, AssetPlugin};
 use bevy::prelude::*;
-use bevy_sherwood::ecosystem::ForestState;
+use bevy_sherwood::ecosystem::{Ecosystem, ForestState};
 use bevy_sherwood::prelude::*;
 
 const FOREST: &str = r#"(
@@ -26,6 +26,17 @@ fn run_until(app: &mut App, seconds: u64, done: impl Fn(&mut App) -> bool) -> bo
         std::thread::sleep(Duration::from_millis(10));
     }
     false
+}
+
+/// Failed (re)loads of ecosystem files so far.
+#[derive(Resource, Default)]
+struct Failures(u32);
+
+fn count_failures(
+    mut failures: ResMut<Failures>,
+    mut read: MessageReader<AssetLoadFailedEvent<Ecosystem>>,
+) {
+    failures.0 += read.read().count() as u32;
 }
 
 fn instances(app: &mut App) -> usize {
@@ -59,7 +70,9 @@ fn edits_respawn_and_malformed_edits_keep_the_forest() {
         },
         TransformPlugin,
         SherwoodPlugins,
-    ));
+    ))
+    .init_resource::<Failures>()
+    .add_systems(Update, count_failures);
     let handle = app
         .world()
         .resource::<AssetServer>()
@@ -75,7 +88,16 @@ fn edits_respawn_and_malformed_edits_keep_the_forest() {
     let generation = app.world().get::<ForestState>(forest).unwrap().generation;
 
     std::fs::write(&file, FOREST.replace("COUNT", "25,,")).unwrap();
-    run_until(&mut app, 3, |_| false);
+    assert!(
+        // (The watcher may report one write as two changes: two failed loads.)
+        run_until(&mut app, 20, |app| app.world().resource::<Failures>().0
+            >= 1),
+        "the malformed edit is reported as a failed load"
+    );
+    // A forest respawned from it would be in place by now.
+    for _ in 0..5 {
+        app.update();
+    }
     assert_eq!(
         instances(&mut app),
         25,

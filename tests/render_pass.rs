@@ -695,7 +695,6 @@ fn every_camera_draws_the_forest_from_its_own_eye() {
 fn ring_offsets_move_the_rings_on_the_gpu() {
     use bevy_sherwood::wind::RingOffsetTable;
     let model = column();
-    let rings = model.rings.len();
     // Every ring but the root moves 0.5 m along +X: the column leans as one piece above
     // its first ring.
     let offsets: Vec<Vec3A> = model
@@ -721,11 +720,9 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
     let (moved, _) = render("wind_moved", eye, target, move |world| {
         // The only tree: instance 0 of the instance table, whose order the offsets follow.
         spawn_full_tree(world, model);
-        world.insert_resource(RingOffsetTable {
-            offsets,
-            starts: vec![0, rings as u32],
-            moved: 1,
-        });
+        let mut table = RingOffsetTable::at_rest(1);
+        table.set(0, &offsets);
+        world.insert_resource(table);
     });
     // Mean x of the lit pixels in the top rows (rings at y = 2 and 3) moves right; the
     // bottom stays where it was.

@@ -440,6 +440,7 @@ fn buffer_uris_outside_the_folder_are_refused() {
     };
     for uri in [
         "../secret.bin",
+        "%2E%2E%5Csecret.bin",
         "trees/../../secret.bin",
         "%2e%2e/secret.bin",
         "/etc/passwd",
@@ -449,18 +450,67 @@ fn buffer_uris_outside_the_folder_are_refused() {
     ] {
         assert!(
             matches!(
-                external_buffer_uris(&gltf(uri)),
+                external_buffers(&gltf(uri)),
                 Err(GltfTreeError::UnsafeUri { .. })
             ),
             "{uri} was accepted"
         );
     }
-    for uri in ["tree.bin", "buffers/tree.bin", "a%20b.bin"] {
+    for (uri, path) in [
+        ("tree.bin", "tree.bin"),
+        ("buffers/tree.bin", "buffers/tree.bin"),
+        ("a%20b.bin", "a b.bin"),
+        ("%C3%A9t%C3%A9.bin", "été.bin"),
+    ] {
         assert_eq!(
-            external_buffer_uris(&gltf(uri)).unwrap(),
-            vec![uri.to_owned()]
+            external_buffers(&gltf(uri)).unwrap(),
+            vec![BufferFile {
+                uri: uri.to_owned(),
+                path: path.to_owned()
+            }]
         );
     }
+}
+
+/// The JSON and the binary chunk of a GLB.
+fn split_glb(glb: &[u8]) -> (String, Vec<u8>) {
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json = String::from_utf8(glb[20..20 + json_len].to_vec()).unwrap();
+    let bin = glb[20 + json_len + 8..].to_vec();
+    (json, bin)
+}
+
+/// A `.gltf` names its buffer file by URI: `my%20oak.bin` is the file `my oak.bin`.
+#[test]
+fn a_buffer_file_named_with_percent_escapes_loads_through_the_asset_server() {
+    use bevy::asset::LoadState;
+    use bevy::prelude::*;
+
+    let dir = std::env::temp_dir().join(format!("sherwood-gltf-uri-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (json, bin) = split_glb(&glb(Vec3::ZERO, "Leaves"));
+    let byte_length = format!(r#""buffers":[{{"byteLength":{}}}]"#, bin.len());
+    assert!(json.contains(&byte_length));
+    let json = json.replace(
+        &byte_length,
+        &format!(
+            r#""buffers":[{{"byteLength":{},"uri":"my%20oak.bin"}}]"#,
+            bin.len()
+        ),
+    );
+    std::fs::write(dir.join("oak.tree.gltf"), json).unwrap();
+    std::fs::write(dir.join("my oak.bin"), bin).unwrap();
+    let mut app = common::tree_app(&dir);
+    let handle: Handle<TreeModel> = app.world().resource::<AssetServer>().load("oak.tree.gltf");
+    let state = common::settle(&mut app, &handle);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(matches!(state, LoadState::Loaded), "{state:?}");
+    let model = app
+        .world()
+        .resource::<Assets<TreeModel>>()
+        .get(&handle)
+        .unwrap();
+    assert_eq!((model.rings.len(), model.leaves.len()), (3, 1));
 }
 
 proptest::proptest! {

@@ -138,7 +138,9 @@ impl FrameBudget {
 /// ([`sqrt_benefit`](crate::budget::oracle::sqrt_benefit)); the bound is its best total
 /// within the rendering time ([`sqrt_benefit_bound`](crate::budget::oracle::sqrt_benefit_bound)),
 /// which no strategy can exceed except where Robin Hood's cheapest representations alone
-/// exceed the rendering time.
+/// exceed the rendering time. With [`StrategyKind::Hierarchical`] the bound is over the
+/// trees its cut reached: for the first frames after switching to it, while the cut is
+/// still a few group impostors and reaches no tree, its benefit is above a bound of 0.
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
 #[reflect(Resource)]
 pub struct BenefitReport {

@@ -864,3 +864,175 @@ fn show_progress(
 /// The on-screen progress line.
 #[derive(Component)]
 struct ProgressText;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cost::logic_time;
+
+    #[test]
+    fn the_median_is_the_middle_finite_value() {
+        assert_eq!(median([3.0, f32::NAN, 1.0, 2.0]), Some(2.0));
+        // Of an even count, the upper of the two middle values.
+        assert_eq!(median([4.0, 1.0, 3.0, 2.0]), Some(3.0));
+        assert_eq!(median([f32::INFINITY, 5.0]), Some(5.0));
+        assert_eq!(median([f32::NAN]), None);
+        assert_eq!(median([]), None);
+    }
+
+    /// A synthetic adapter: each family's (and size's) cost, in seconds.
+    fn truth(family: Family, size: u32) -> LinearCost {
+        let s = size as f32;
+        match family {
+            Family::Triangles => LinearCost {
+                fixed: 2e-4,
+                per_primitive: 3e-8,
+                per_pixel: 4e-9,
+            },
+            Family::Lines => LinearCost {
+                fixed: 1e-4,
+                per_primitive: 1e-8 * (1.0 + 0.1 * s),
+                per_pixel: 2e-9,
+            },
+            Family::Points => LinearCost {
+                fixed: 1e-4,
+                per_primitive: 4e-9 * s * s + 2e-8,
+                per_pixel: 0.0,
+            },
+        }
+    }
+
+    /// Pixels a step's primitives cover: trees nearer the camera (a larger fraction of
+    /// the view) cover more per triangle and per line; a point covers its square.
+    fn pixels(family: Family, size: u32, primitives: u32, tree_fraction: f32) -> f32 {
+        let nearness = tree_fraction / 0.12;
+        primitives as f32
+            * match family {
+                Family::Triangles => 6.0 * nearness,
+                Family::Lines => size as f32 * 3.0 * nearness,
+                Family::Points => (size * size) as f32,
+            }
+    }
+
+    /// What a run of `plan` would measure on the synthetic adapter: one sample per step.
+    fn measure(plan: &[Step]) -> (Vec<(Family, u32, CostSample)>, Vec<(f32, u32, f32)>) {
+        let mut render = Vec::new();
+        let mut logic = Vec::new();
+        for step in plan {
+            match *step {
+                Step::Render {
+                    family,
+                    size,
+                    primitives,
+                    tree_fraction,
+                } => {
+                    let pixels = pixels(family, size, primitives, tree_fraction);
+                    render.push((
+                        family,
+                        size,
+                        CostSample {
+                            primitives: primitives as f32,
+                            pixels,
+                            time: truth(family, size).time(primitives as f32, pixels),
+                        },
+                    ));
+                }
+                Step::Logic { target_ms, turn } => {
+                    let visible = (turn * 500.0) as u32;
+                    logic.push((target_ms, visible, 1e-3 + 2e-6 * visible as f32));
+                }
+                Step::WarmUp | Step::Empty => {}
+            }
+        }
+        (render, logic)
+    }
+
+    fn adapter() -> AdapterIdentity {
+        AdapterIdentity {
+            name: "synthetic".into(),
+            driver: "test".into(),
+            cpu: false,
+        }
+    }
+
+    #[test]
+    fn a_run_of_the_plan_fits_back_the_adapter_it_measured() {
+        let settings = CalibrationSettings {
+            sizes: vec![1, 3, 8, 20],
+            ..default()
+        };
+        let plan = plan(&settings);
+        assert_eq!(plan[..2], [Step::WarmUp, Step::Empty]);
+        let (render, logic) = measure(&plan);
+        let calibration = fit(&render, &logic, 0.004, &adapter()).unwrap();
+        assert_eq!(calibration.render_fixed, 0.004);
+        assert_eq!(calibration.lines.len(), 20);
+        assert_eq!(calibration.points.len(), 20);
+        // Predictions at a distance the plan did not measure, so a per-pixel part the
+        // plan cannot tell from the per-primitive one shows.
+        let close = |a: f32, b: f32| (a - b).abs() <= 0.02 * b.abs().max(1e-6);
+        for (family, costs) in [
+            (Family::Triangles, vec![calibration.triangles; 20]),
+            (Family::Lines, calibration.lines.clone()),
+            (Family::Points, calibration.points.clone()),
+        ] {
+            for &size in &settings.sizes {
+                let cost = costs[size as usize - 1];
+                let size = if family == Family::Triangles { 1 } else { size };
+                for primitives in [1_000, 60_000, 300_000] {
+                    let px = pixels(family, size, primitives, 0.3);
+                    let (fitted, truth) = (
+                        cost.time(primitives as f32, px),
+                        truth(family, size).time(primitives as f32, px),
+                    );
+                    assert!(
+                        close(fitted, truth),
+                        "{family:?} {size} px, {primitives}: fitted {fitted}, truth {truth}"
+                    );
+                }
+            }
+        }
+        // A size between two measured ones is between their costs.
+        let between = calibration.points[4].time(10_000.0, 0.0);
+        assert!(
+            calibration.points[2].time(10_000.0, 0.0) < between
+                && between < calibration.points[7].time(10_000.0, 0.0)
+        );
+        // One logic table per target, each from its rising and falling walk.
+        let targets: Vec<f32> = calibration.logic.iter().map(|t| t.target_ms).collect();
+        assert_eq!(targets, settings.logic_targets_ms);
+        for table in &calibration.logic {
+            let time = logic_time(std::slice::from_ref(table), 250, table.target_ms);
+            assert!(close(time, 1e-3 + 2e-6 * 250.0), "{time}");
+        }
+    }
+
+    #[test]
+    fn the_logic_walk_turns_towards_the_forest_and_back() {
+        let settings = CalibrationSettings {
+            logic_targets_ms: vec![40.0],
+            logic_positions: 4,
+            ..default()
+        };
+        let turns: Vec<f32> = plan(&settings)
+            .into_iter()
+            .filter_map(|s| match s {
+                Step::Logic { turn, .. } => Some(turn),
+                _ => None,
+            })
+            .collect();
+        let third = 1.0 / 3.0;
+        assert_eq!(
+            turns,
+            [0.0, third, 2.0 * third, 1.0, 1.0, 2.0 * third, third, 0.0]
+        );
+    }
+
+    #[test]
+    fn a_family_the_run_did_not_measure_is_named_in_the_error() {
+        let (mut render, logic) = measure(&plan(&CalibrationSettings::default()));
+        render.retain(|s| s.0 != Family::Lines);
+        let error = fit(&render, &logic, 0.0, &adapter()).unwrap_err();
+        assert!(error.starts_with("lines: "), "{error}");
+    }
+}

@@ -29,6 +29,7 @@ use bevy::asset::{embedded_asset, load_embedded_asset};
 use bevy::camera::{MainPassResolutionOverride, Viewport};
 use bevy::core_pipeline::{Core3dSystems, core_3d::main_opaque_pass_3d, schedule::Core3d};
 use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
+use bevy::math::{Affine3A, FloatOrd, Vec3A};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::{
@@ -82,6 +83,10 @@ pub struct ForestRenderPlugin;
 pub struct ForestRenderStats {
     /// Tree instances with something to draw.
     pub instances: u32,
+    /// Trees with something to draw that were left out, the farthest from the cameras
+    /// first, because their records needed more than the device binds in one buffer (a
+    /// forest of millions in view); a warning is logged when it starts.
+    pub left_out: u32,
     /// Primitives drawn per view.
     pub counts: PrimitiveCounts,
     /// Chunks per primitive kind (trunk triangles, leaf triangles, lines, points).
@@ -241,11 +246,34 @@ struct ForestFrame {
     atlas: GeometryAtlas,
     atlas_dirty: bool,
     slots: HashMap<AssetId<TreeModel>, ModelSlot>,
+    light: GpuLight,
+    records: FrameRecords,
+}
+
+/// The frame's per-tree records.
+#[derive(Default)]
+struct FrameRecords {
     instances: Vec<GpuInstance>,
     chunks: FrameChunks,
     ring_offsets: Vec<[f32; 4]>,
-    light: GpuLight,
     counts: PrimitiveCounts,
+    /// Bytes the device binds in one storage buffer.
+    binding_limit: u64,
+    /// Trees with something to draw that did not fit in this frame's buffers.
+    left_out: u32,
+}
+
+impl FrameRecords {
+    /// Whether the records fit in what the device binds at once (instances, chunks and
+    /// gathered slots each in one binding).
+    fn fits(&self) -> bool {
+        let (chunks, gathered) = self.chunks.len_bound();
+        let bytes = |n: usize, size: usize| (n * size) as u64;
+        bytes(self.instances.len(), size_of::<GpuInstance>()) <= self.binding_limit
+            && bytes(chunks, size_of::<crate::draw::GpuChunk>()) <= self.binding_limit
+            && bytes(gathered, size_of::<[u32; 2]>()) <= self.binding_limit
+            && bytes(self.ring_offsets.len(), size_of::<[f32; 4]>()) <= self.binding_limit
+    }
 }
 
 #[expect(
@@ -269,6 +297,8 @@ fn extract_forest(
     table: Extract<Option<Res<ForestInstances>>>,
     offsets: Extract<Option<Res<RingOffsetTable>>>,
     lights: Extract<Query<(&DirectionalLight, &GlobalTransform)>>,
+    cameras: Extract<Query<(&Camera, &GlobalTransform)>>,
+    device: Res<RenderDevice>,
 ) {
     let frame = &mut *frame;
     if frame.geometry_version != Some(version.0) {
@@ -295,15 +325,36 @@ fn extract_forest(
     // a slice.
     let moving = offsets
         .as_deref()
-        .filter(|t| t.moved > 0)
+        .filter(|t| t.moving() > 0)
         .zip(table.as_deref());
 
-    frame.instances.clear();
-    frame.chunks.clear();
-    frame.ring_offsets.clear();
-    frame.counts = PrimitiveCounts::default();
+    let records = &mut frame.records;
+    records.instances.clear();
+    records.chunks.clear();
+    records.ring_offsets.clear();
+    records.counts = PrimitiveCounts::default();
+    records.binding_limit = device.limits().max_storage_buffer_binding_size;
+    let overflowed = records.left_out > 0;
+    records.left_out = 0;
+    let mut trees: Vec<_> = trees.iter().collect();
+    // More trees to draw than the device binds at once (a forest of millions, all in
+    // view): the nearest are drawn, the farthest left out, rather than none.
+    if overflowed {
+        let eyes: Vec<Vec3> = cameras
+            .iter()
+            .filter(|(camera, _)| camera.is_active)
+            .map(|(_, t)| t.translation())
+            .collect();
+        let distance = |t: &GlobalTransform| {
+            let p = t.translation();
+            eyes.iter()
+                .map(|e| e.distance_squared(p))
+                .fold(f32::INFINITY, f32::min)
+        };
+        trees.sort_by_cached_key(|tree| FloatOrd(distance(tree.2)));
+    }
     let mut unlisted;
-    for (entity, instance, global, list, shading, (fixed, local, has_parent)) in &trees {
+    for (entity, instance, global, list, shading, (fixed, local, has_parent)) in trees {
         let (Some(slot), Some(model)) = (
             frame.slots.get(&instance.model.id()),
             models.get(&instance.model),
@@ -332,25 +383,52 @@ fn extract_forest(
         if list.is_empty() || !affine.is_finite() {
             continue;
         }
-        let index = frame.instances.len() as u32;
-        let mut ring_base = NO_RING;
-        if let Some((rings, i)) =
-            moving.and_then(|(rings, table)| Some((rings, table.index_of(entity)?)))
-        {
-            let (start, end) = (rings.starts[i as usize], rings.starts[i as usize + 1]);
-            let slice = &rings.offsets[start as usize..end as usize];
-            if slice.len() == slot.rings as usize && slice.iter().any(|o| *o != Vec3A::ZERO) {
-                ring_base = frame.ring_offsets.len() as u32;
-                frame
-                    .ring_offsets
-                    .extend(slice.iter().map(|o| o.extend(0.0).to_array()));
-            }
-        }
-        let (m, t) = (affine.matrix3, affine.translation);
+        let offsets = moving.and_then(|(rings, table)| rings.get(table.index_of(entity)? as usize));
         let shading = shading
             .copied()
             .unwrap_or_else(|| TreeShading::of_model(model));
-        frame.instances.push(GpuInstance {
+        if !records.push(slot, list, affine, offsets, shading) {
+            records.left_out += 1;
+        }
+    }
+    records.chunks.finish();
+    if records.left_out > 0 && !overflowed {
+        warn!(
+            "bevy_sherwood: {} of the {} trees to draw are left out, the farthest first, while their records need more than this device binds in one buffer ({} bytes); fewer trees in view bring them back",
+            records.left_out,
+            records.left_out as usize + records.instances.len(),
+            records.binding_limit
+        );
+    }
+}
+
+impl FrameRecords {
+    /// Adds one tree's records, or nothing and `false` when they would not fit.
+    fn push(
+        &mut self,
+        slot: &ModelSlot,
+        list: &TreeDrawList,
+        affine: Affine3A,
+        offsets: Option<&[Vec3A]>,
+        shading: TreeShading,
+    ) -> bool {
+        if self.left_out > 0 {
+            // Full: the rest is left out too, and not tried one by one.
+            return false;
+        }
+        let (rings, chunks) = (self.ring_offsets.len(), self.chunks.mark());
+        let index = self.instances.len() as u32;
+        let mut ring_base = NO_RING;
+        if let Some(slice) = offsets
+            && slice.len() == slot.rings as usize
+            && slice.iter().any(|o| *o != Vec3A::ZERO)
+        {
+            ring_base = self.ring_offsets.len() as u32;
+            self.ring_offsets
+                .extend(slice.iter().map(|o| o.extend(0.0).to_array()));
+        }
+        let (m, t) = (affine.matrix3, affine.translation);
+        self.instances.push(GpuInstance {
             rows: [
                 [m.x_axis.x, m.y_axis.x, m.z_axis.x, t.x],
                 [m.x_axis.y, m.y_axis.y, m.z_axis.y, t.y],
@@ -361,10 +439,16 @@ fn extract_forest(
             ring_base,
             pad: [0; 3],
         });
-        frame.chunks.push(index, slot, list);
-        frame.counts += slot.counts(list);
+        self.chunks.push(index, slot, list);
+        if !self.fits() {
+            self.instances.pop();
+            self.ring_offsets.truncate(rings);
+            self.chunks.truncate(chunks);
+            return false;
+        }
+        self.counts += slot.counts(list);
+        true
     }
-    frame.chunks.finish();
 }
 
 /// GPU copies of the frame's records and the shared geometry.
@@ -435,9 +519,9 @@ fn upload_buffers(
         fill(&mut buffers.corner_indices, &CORNER_INDICES);
         buffers.corner_indices.write_buffer(&device, &queue);
     }
-    fill(&mut buffers.instances, &frame.instances);
-    fill(&mut buffers.ring_offsets, &frame.ring_offsets);
-    fill(&mut buffers.gathered, &frame.chunks.gathered);
+    fill(&mut buffers.instances, &frame.records.instances);
+    fill(&mut buffers.ring_offsets, &frame.records.ring_offsets);
+    fill(&mut buffers.gathered, &frame.records.chunks.gathered);
     fill(&mut buffers.light, &[frame.light]);
     let chunks = buffers.chunks.values_mut();
     chunks.clear();
@@ -446,6 +530,7 @@ fn upload_buffers(
         let kind = batch.kind();
         chunks.extend(
             frame
+                .records
                 .chunks
                 .of(kind)
                 .iter()
@@ -465,8 +550,9 @@ fn upload_buffers(
     if let Ok(mut stats) = mailbox.0.lock() {
         let s = buffers.batch_starts;
         *stats = ForestRenderStats {
-            instances: frame.instances.len() as u32,
-            counts: frame.counts,
+            instances: frame.records.instances.len() as u32,
+            left_out: frame.records.left_out,
+            counts: frame.records.counts,
             chunks: PrimitiveKind::ALL.map(|kind| kind_chunks(&s, kind)),
             draw_calls_per_view: s.windows(2).filter(|w| w[1] > w[0]).count() as u32,
             views: views.iter().count() as u32,
@@ -776,4 +862,133 @@ fn draw_forest(
         }
     }
     span.end(&mut pass);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::draw::{GpuChunk, LineRun, PointRun};
+    use crate::tree::SpeciesDesc;
+
+    fn model() -> TreeModel {
+        let text = include_str!("../../assets/species/grand.species.ron");
+        SpeciesDesc::from_ron_str(text)
+            .unwrap()
+            .generate_and_analyze()
+            .unwrap()
+            .model
+    }
+
+    /// Records whose buffers bind `limit` bytes, and the model's place in an atlas.
+    fn frame(model: &TreeModel, limit: u64) -> (FrameRecords, ModelSlot) {
+        let records = FrameRecords {
+            binding_limit: limit,
+            ..default()
+        };
+        (records, GeometryAtlas::default().push(model))
+    }
+
+    /// A few lines and points of several widths and sizes: leftovers in several chunks.
+    fn list(model: &TreeModel, k: u32) -> TreeDrawList {
+        let segments = model.segments.len() as u32;
+        let leaves = model.leaves.len() as u32;
+        TreeDrawList {
+            trunk_lines: vec![LineRun {
+                segments: 0..(7 + k) % segments,
+                width: 1 + k % 3,
+            }],
+            leaf_points: vec![PointRun {
+                leaves: 0..(40 + 13 * k) % leaves,
+                size: 1 + k % 7,
+            }],
+            ..default()
+        }
+    }
+
+    /// The gathered slots and chunks as the pass reads them.
+    fn chunks(frame: &FrameRecords) -> Vec<GpuChunk> {
+        PrimitiveKind::ALL
+            .iter()
+            .flat_map(|&kind| frame.chunks.of(kind).iter().copied())
+            .collect()
+    }
+
+    #[test]
+    fn the_chunk_bound_is_never_below_what_finishing_leaves() {
+        let model = model();
+        let (mut frame, slot) = frame(&model, u64::MAX);
+        for k in 0..200 {
+            frame.chunks.push(k, &slot, &list(&model, k));
+            let bound = frame.chunks.len_bound();
+            let mut done = frame.chunks.clone();
+            done.finish();
+            let total: usize = PrimitiveKind::ALL
+                .iter()
+                .map(|&kind| done.of(kind).len())
+                .sum();
+            assert!(
+                total <= bound.0 && done.gathered.len() <= bound.1,
+                "{k}: {bound:?}"
+            );
+        }
+    }
+
+    /// One 1-pixel line: a tree that takes one gathered slot.
+    fn twig() -> TreeDrawList {
+        TreeDrawList {
+            trunk_lines: vec![LineRun {
+                segments: 0..1,
+                width: 1,
+            }],
+            ..default()
+        }
+    }
+
+    /// Pushes `lists` as the extraction does; the trees drawn.
+    fn push_all(records: &mut FrameRecords, slot: &ModelSlot, lists: &[TreeDrawList]) -> usize {
+        let shading = TreeShading::of_model(&model());
+        let mut drawn = 0;
+        for list in lists {
+            if records.push(slot, list, Affine3A::IDENTITY, None, shading) {
+                drawn += 1;
+            } else {
+                records.left_out += 1;
+            }
+        }
+        records.chunks.finish();
+        drawn
+    }
+
+    #[test]
+    fn trees_past_what_the_device_binds_are_left_out_whole() {
+        let model = model();
+        // Room for ten instance records.
+        let limit = 10 * size_of::<GpuInstance>() as u64;
+        let (mut records, slot) = frame(&model, limit);
+        let twigs = vec![twig(); 25];
+        assert_eq!(push_all(&mut records, &slot, &twigs), 10);
+        assert_eq!((records.instances.len(), records.left_out), (10, 15));
+        assert_eq!(records.counts.lines, 10);
+
+        // Trees of many leftovers: the gathered slots fill first. Nothing of a left-out
+        // tree stays behind, and what is kept binds.
+        let (mut records, slot) = frame(&model, 4096);
+        let lists: Vec<TreeDrawList> = (0..25).map(|k| list(&model, k)).collect();
+        let drawn = push_all(&mut records, &slot, &lists);
+        assert!(drawn > 0 && drawn < 25, "{drawn}");
+        assert_eq!(records.instances.len(), drawn);
+        let mut counts = PrimitiveCounts::default();
+        for list in &lists[..drawn] {
+            counts += slot.counts(list);
+        }
+        assert_eq!(records.counts, counts);
+        let chunks = chunks(&records);
+        for chunk in &chunks {
+            for (instance, _) in records.chunks.slots(chunk) {
+                assert!((instance as usize) < drawn, "{chunk:?}");
+            }
+        }
+        assert!((chunks.len() * size_of::<GpuChunk>()) as u64 <= records.binding_limit);
+        assert!((records.chunks.gathered.len() * 8) as u64 <= records.binding_limit);
+    }
 }

@@ -265,26 +265,42 @@ fn take_ground_planes(primitives: &mut Vec<Primitive>) -> Vec<(String, f32)> {
     taken
 }
 
-/// URIs of the external buffer files `bytes` refers to (not data URIs, not the GLB blob).
-/// A URI that would read outside the file's folder (a `..` segment, an absolute path, a
-/// drive or another scheme, percent-encoded or not) is refused: a tree file must not be
-/// able to read the rest of the machine.
-pub fn external_buffer_uris(bytes: &[u8]) -> Result<Vec<String>, GltfTreeError> {
+/// An external buffer file a glTF document refers to.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BufferFile {
+    /// The URI as the document writes it: the key of the buffer's bytes for
+    /// [`import_gltf`].
+    pub uri: String,
+    /// The file to read, relative to the document's folder: the URI percent-decoded
+    /// (`my%20tree.bin` is the file `my tree.bin`).
+    pub path: String,
+}
+
+/// The external buffer files `bytes` refers to (not data URIs, not the GLB blob). A URI
+/// that would read outside the file's folder (a `..` segment, an absolute path, a drive
+/// or another scheme, percent-encoded or not) is refused: a tree file must not be able to
+/// read the rest of the machine.
+pub fn external_buffers(bytes: &[u8]) -> Result<Vec<BufferFile>, GltfTreeError> {
     let gltf = parse(bytes)?;
-    let mut uris = Vec::new();
+    let mut files = Vec::new();
     for buffer in gltf.buffers() {
         if let gltf::buffer::Source::Uri(uri) = buffer.source()
             && !uri.starts_with("data:")
         {
-            if !is_confined(uri) {
-                return Err(GltfTreeError::UnsafeUri {
-                    uri: uri.to_owned(),
-                });
+            let unsafe_uri = || GltfTreeError::UnsafeUri {
+                uri: uri.to_owned(),
+            };
+            let path = percent_decoded(uri).ok_or_else(unsafe_uri)?;
+            if !is_confined(&path) {
+                return Err(unsafe_uri());
             }
-            uris.push(uri.to_owned());
+            files.push(BufferFile {
+                uri: uri.to_owned(),
+                path,
+            });
         }
     }
-    Ok(uris)
+    Ok(files)
 }
 
 /// Parses a glTF document. The `gltf` crate's validation indexes arrays with indices it
@@ -304,9 +320,8 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf, GltfTreeError> {
     }
 }
 
-/// Whether a relative URI stays in its folder or below: no scheme or drive, no root, no
-/// `..` segment, after percent-decoding.
-fn is_confined(uri: &str) -> bool {
+/// `uri` with its `%XX` escapes decoded, or `None` when that is not UTF-8.
+fn percent_decoded(uri: &str) -> Option<String> {
     let bytes = uri.as_bytes();
     let mut decoded = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -327,9 +342,12 @@ fn is_confined(uri: &str) -> bool {
             }
         }
     }
-    let Ok(path) = String::from_utf8(decoded) else {
-        return false;
-    };
+    String::from_utf8(decoded).ok()
+}
+
+/// Whether a relative (decoded) path stays in its folder or below: no scheme or drive, no
+/// root, no `..` segment.
+fn is_confined(path: &str) -> bool {
     !path.is_empty()
         && !path.contains(':')
         && !path.starts_with(['/', '\\'])
@@ -405,7 +423,7 @@ fn check_accessor(
 }
 
 /// Splits a glTF document into trunk and leaves and analyses them. `external` holds the
-/// bytes of the buffer files named by [`external_buffer_uris`]. A ground plane exported
+/// bytes of the buffer files named by [`external_buffers`]. A ground plane exported
 /// with the tree is left out with a warning ([`AnalysisWarning::GroundPlaneLeftOut`]).
 pub fn import_gltf(
     bytes: &[u8],
@@ -656,16 +674,16 @@ impl AssetLoader for GltfTreeLoader {
             .await
             .map_err(|e| GltfTreeError::Io(e.to_string()))?;
         let mut external = HashMap::new();
-        for uri in external_buffer_uris(&bytes)? {
+        for file in external_buffers(&bytes)? {
             let path = load_context
                 .path()
-                .resolve_embed_str(&uri)
+                .resolve_embed_str(&file.path)
                 .map_err(|e| GltfTreeError::Io(e.to_string()))?;
             let data = load_context
                 .read_asset_bytes(path)
                 .await
                 .map_err(|e| GltfTreeError::Io(e.to_string()))?;
-            external.insert(uri, data);
+            external.insert(file.uri, data);
         }
         let analysis = import_gltf(&bytes, settings, &external)?;
         for warning in &analysis.warnings {

@@ -22,7 +22,7 @@ pub use asset::{
 };
 #[cfg(feature = "gltf")]
 pub use gltf::{
-    GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffer_uris, import_gltf,
+    BufferFile, GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffers, import_gltf,
 };
 pub use group::{GroupMember, GroupModelOptions, group_model};
 pub(crate) use lod::trunk_line_runs;

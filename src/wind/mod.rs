@@ -6,10 +6,12 @@ mod asset;
 mod motion;
 mod plugin;
 mod spring;
+mod table;
 
 pub use asset::{MAX_WIND_DISPLACEMENT, SpringSet, SpringSetError, SpringSetLoader};
 pub use motion::{
     AssociationRule, RingMotion, WindRig, associate, moved_bounds, ring_offsets, update_interval,
 };
-pub use plugin::{RingOffsetTable, WindPlugin, WindSettings, WindStats};
+pub use plugin::{WindPlugin, WindSettings, WindStats};
 pub use spring::{FixedStepper, GustDesc, Spring, SpringDesc, WindDesc};
+pub use table::RingOffsetTable;

@@ -6,6 +6,7 @@ use bevy::math::Vec3A;
 use bevy::prelude::*;
 
 use super::asset::{SpringSet, SpringSetLoader};
+use super::table::RingOffsetTable;
 use std::collections::HashMap;
 
 use super::motion::{WindRig, associate, moved_bounds, ring_offsets, update_interval};
@@ -47,19 +48,6 @@ impl Default for WindSettings {
             max_update_interval: 8,
         }
     }
-}
-
-/// Ring offsets of every instance, in the order of [`ForestInstances`]: instance
-/// `i`'s rings are `offsets[starts[i]..starts[i + 1]]`, in its model's ring order (model
-/// space). Instances that do not move have all-zero offsets.
-#[derive(Resource, Clone, Debug, Default)]
-pub struct RingOffsetTable {
-    /// Per-ring offsets, instance after instance.
-    pub offsets: Vec<Vec3A>,
-    /// Where each instance's rings start; one more entry than instances.
-    pub starts: Vec<u32>,
-    /// Instances with offsets (the rest were invisible or below the motion LOD).
-    pub moved: u32,
 }
 
 /// What the wind stage did in the last frame.
@@ -175,6 +163,8 @@ struct InstanceWind {
     translation: Vec3,
     /// Index into [`WindCache::rigs`], or [`UNRESOLVED`].
     rig: u32,
+    /// Its model's ring count.
+    rings: u32,
     /// Its offsets (and moved culling shape) are not at rest.
     moving: bool,
 }
@@ -218,15 +208,10 @@ impl WindCache {
         table: &mut RingOffsetTable,
     ) {
         self.instances.clear();
-        table.offsets.clear();
-        table.starts.clear();
+        table.reset(instances.len());
         for i in 0..instances.len() {
-            table.starts.push(table.offsets.len() as u32);
             let laid = instances.model_id(i).and_then(|id| {
                 let model = models.get(id)?;
-                table
-                    .offsets
-                    .resize(table.offsets.len() + model.rings.len(), Vec3A::ZERO);
                 let (_, rotation, translation) =
                     instances.transforms[i].to_scale_rotation_translation();
                 Some(InstanceWind {
@@ -236,12 +221,12 @@ impl WindCache {
                     rotation,
                     translation,
                     rig: UNRESOLVED,
+                    rings: model.rings.len() as u32,
                     moving: false,
                 })
             });
             self.instances.push(laid);
         }
-        table.starts.push(table.offsets.len() as u32);
     }
 
     /// Follows the instances that moved (same layout).
@@ -336,7 +321,6 @@ fn move_rings(
         let Some(instance) = cache.instances[i].as_mut() else {
             continue;
         };
-        let rings = table.starts[i] as usize..table.starts[i + 1] as usize;
         let visible = visibility
             .get(i)
             .is_some_and(|v| *v != InstanceVisibility::Invisible);
@@ -352,7 +336,7 @@ fn move_rings(
             pixel_threshold,
         }) = springs
         else {
-            come_to_rest(instance, &mut table.offsets[rings], moved, i);
+            come_to_rest(instance, table, moved, i);
             continue;
         };
         counts.candidates += 1;
@@ -374,7 +358,7 @@ fn move_rings(
             pixels_per_unit.map_or(f32::INFINITY, |ppu| largest * rig.reach() * ppu);
         if motion_pixels < *pixel_threshold {
             counts.skipped += 1;
-            come_to_rest(instance, &mut table.offsets[rings], moved, i);
+            come_to_rest(instance, table, moved, i);
             continue;
         }
         // Update-rate LOD, staggered by instance so each frame updates a similar share.
@@ -397,17 +381,16 @@ fn move_rings(
             threshold,
             &mut cache.scratch,
         );
-        if cache.scratch.len() == rings.len() {
-            table.offsets[rings].copy_from_slice(&cache.scratch);
+        if cache.scratch.len() == instance.rings as usize {
+            table.set(i, &cache.scratch);
             moved_bounds(rig, &cache.scratch, moved.shape_mut(i));
             instance.moving = true;
             counts.updated += 1;
             counts.moved += 1;
         } else {
-            come_to_rest(instance, &mut table.offsets[rings], moved, i);
+            come_to_rest(instance, table, moved, i);
         }
     }
-    table.moved = counts.moved;
     *stats = WindStats {
         update_ms: start_time.elapsed().as_secs_f32() * 1000.0,
         ..counts
@@ -444,12 +427,12 @@ fn resolve_rig<'a>(
 /// Puts a still instance back at rest, once.
 fn come_to_rest(
     instance: &mut InstanceWind,
-    offsets: &mut [Vec3A],
+    table: &mut RingOffsetTable,
     moved: &mut MovedShapes,
     i: usize,
 ) {
     if instance.moving {
-        offsets.fill(Vec3A::ZERO);
+        table.rest(i);
         moved.remove(i);
         instance.moving = false;
     }

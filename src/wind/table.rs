@@ -1,0 +1,170 @@
+//! The ring offsets the render pass applies, held only for the instances that move: a
+//! forest's far trees (below the motion level of detail, or out of view) cost an empty
+//! span each, not a block of zeros per ring.
+
+use std::collections::HashMap;
+
+use bevy::math::Vec3A;
+use bevy::prelude::*;
+
+/// Ring offsets of the moving instances, indexed like
+/// [`ForestInstances`](crate::instance::ForestInstances): [`get`](Self::get)`(i)` is
+/// instance `i`'s offsets in its model's ring order (model space), or `None` while it is
+/// at rest. The memory held follows the most instances that moved at once, not the
+/// forest's size.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct RingOffsetTable {
+    /// Per instance, `[start, len]` of its block in `offsets`; `len` 0 at rest.
+    spans: Vec<[u32; 2]>,
+    offsets: Vec<Vec3A>,
+    /// Starts of blocks given back by instances that came to rest, by block length.
+    free: HashMap<u32, Vec<u32>>,
+    moving: u32,
+}
+
+impl RingOffsetTable {
+    /// A table of `instances` instances, every one at rest.
+    pub fn at_rest(instances: usize) -> Self {
+        let mut table = Self::default();
+        table.reset(instances);
+        table
+    }
+
+    /// Puts every instance at rest and sizes the table for `instances` instances.
+    pub fn reset(&mut self, instances: usize) {
+        self.spans.clear();
+        self.spans.resize(instances, [0, 0]);
+        self.offsets.clear();
+        self.free.clear();
+        self.moving = 0;
+    }
+
+    /// Instances in the table, moving or not.
+    pub fn len(&self) -> usize {
+        self.spans.len()
+    }
+
+    /// Whether the table has no instances.
+    pub fn is_empty(&self) -> bool {
+        self.spans.is_empty()
+    }
+
+    /// Instances with offsets.
+    pub fn moving(&self) -> u32 {
+        self.moving
+    }
+
+    /// Instance `instance`'s ring offsets, or `None` while it is at rest (or past the
+    /// table).
+    pub fn get(&self, instance: usize) -> Option<&[Vec3A]> {
+        let [start, len] = *self.spans.get(instance)?;
+        (len > 0).then(|| &self.offsets[start as usize..(start + len) as usize])
+    }
+
+    /// Gives `instance` the offsets `rings` (one per ring of its model); an empty slice
+    /// puts it at rest. An instance past the table is left out: the table is sized by
+    /// [`reset`](Self::reset).
+    pub fn set(&mut self, instance: usize, rings: &[Vec3A]) {
+        let Some(&[_, len]) = self.spans.get(instance) else {
+            return;
+        };
+        if len as usize != rings.len() {
+            self.rest(instance);
+            if rings.is_empty() {
+                return;
+            }
+            let len = rings.len() as u32;
+            let start = match self.free.get_mut(&len).and_then(Vec::pop) {
+                Some(start) => start,
+                None => {
+                    let start = self.offsets.len() as u32;
+                    self.offsets
+                        .resize(self.offsets.len() + rings.len(), Vec3A::ZERO);
+                    start
+                }
+            };
+            self.spans[instance] = [start, len];
+            self.moving += 1;
+        }
+        let [start, _] = self.spans[instance];
+        self.offsets[start as usize..start as usize + rings.len()].copy_from_slice(rings);
+    }
+
+    /// Puts `instance` back at rest; its block is kept for the next instance of the same
+    /// ring count to move.
+    pub fn rest(&mut self, instance: usize) {
+        let Some(span) = self.spans.get_mut(instance) else {
+            return;
+        };
+        let [start, len] = *span;
+        if len == 0 {
+            return;
+        }
+        *span = [0, 0];
+        self.free.entry(len).or_default().push(start);
+        self.moving -= 1;
+    }
+
+    /// Ring offsets held, moving instances' and free blocks' together: the table's
+    /// memory is this times 16 bytes (plus 8 per instance).
+    pub fn rings_held(&self) -> usize {
+        self.offsets.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_moving_instance_reads_back_its_offsets_and_none_at_rest() {
+        let mut table = RingOffsetTable::at_rest(3);
+        assert_eq!(table.get(1), None);
+        table.set(1, &[Vec3A::X, Vec3A::Y]);
+        table.set(2, &[Vec3A::Z]);
+        assert_eq!(table.get(1), Some(&[Vec3A::X, Vec3A::Y][..]));
+        assert_eq!(table.get(2), Some(&[Vec3A::Z][..]));
+        assert_eq!(table.get(0), None);
+        assert_eq!(table.moving(), 2);
+        table.rest(1);
+        assert_eq!(table.get(1), None);
+        assert_eq!(table.get(2), Some(&[Vec3A::Z][..]));
+        assert_eq!(table.moving(), 1);
+        table.set(2, &[]);
+        assert_eq!((table.get(2), table.moving()), (None, 0));
+        // Past the table: left out, not a panic.
+        table.set(7, &[Vec3A::X]);
+        assert_eq!((table.get(7), table.moving()), (None, 0));
+    }
+
+    #[test]
+    fn memory_follows_the_instances_moving_at_once_not_the_forest() {
+        let mut table = RingOffsetTable::at_rest(10_000);
+        let rings = [Vec3A::ONE; 40];
+        // A hundred trees move at a time, the crowd walking through the whole forest.
+        for step in 0..100 {
+            let first = step * 100;
+            if step > 0 {
+                (first - 100..first).for_each(|i| table.rest(i));
+            }
+            (first..first + 100).for_each(|i| table.set(i, &rings));
+        }
+        assert_eq!(table.moving(), 100);
+        assert_eq!(table.rings_held(), 100 * rings.len());
+        // A second model's ring count takes its own blocks; the first's are kept free.
+        table.set(0, &[Vec3A::X; 7]);
+        assert_eq!(table.rings_held(), 100 * rings.len() + 7);
+        assert_eq!(table.get(9_950), Some(&rings[..]));
+    }
+
+    #[test]
+    fn a_reused_block_holds_only_its_new_instances_offsets() {
+        let mut table = RingOffsetTable::at_rest(2);
+        table.set(0, &[Vec3A::X, Vec3A::X]);
+        table.rest(0);
+        table.set(1, &[Vec3A::Y, Vec3A::Z]);
+        assert_eq!(table.get(1), Some(&[Vec3A::Y, Vec3A::Z][..]));
+        assert_eq!(table.get(0), None);
+        assert_eq!(table.rings_held(), 2);
+    }
+}
