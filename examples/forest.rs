@@ -1168,18 +1168,31 @@ fn give_up_when_nothing_is_drawn(
     mut reported: Local<bool>,
 ) {
     let measuring = options.path.is_some() || options.frames.is_some();
-    if !measuring || run.frame > 0 || *reported || time.elapsed_secs() < FIRST_FRAME_TIMEOUT_SECS {
+    // A forest the pass is drawing may take long to its first complete frame (millions
+    // of trees in view): it gets ten times as long before the run gives up on it.
+    let waited = time.elapsed_secs();
+    let patience = if stats.instances > 0 { 10.0 } else { 1.0 } * FIRST_FRAME_TIMEOUT_SECS;
+    if !measuring || run.frame > 0 || *reported || waited < patience {
         return;
     }
     let trees = instances.iter().count();
+    if stats.instances > 0 {
+        eprintln!(
+            "forest: no frame completed in {patience} s: the pass draws {} of the {trees} trees, {} in view",
+            stats.instances, lod.visible_instances
+        );
+        *reported = true;
+        exit.write(AppExit::error());
+        return;
+    }
     let why = if trees == 0 {
         "no tree was spawned (see the errors above)".to_owned()
     } else if lod.visible_instances == 0 {
         format!("none of the {trees} trees is in view")
     } else {
         format!(
-            "{} of the {trees} trees are in view but the pass drew {} (pipelines still compiling?)",
-            lod.visible_instances, stats.instances
+            "{} of the {trees} trees are in view but the pass drew none (pipelines still compiling?)",
+            lod.visible_instances
         )
     };
     eprintln!("forest: nothing was drawn in {FIRST_FRAME_TIMEOUT_SECS} s: {why}");

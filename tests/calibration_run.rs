@@ -66,6 +66,28 @@ fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
     assert!(calibration.triangles.per_primitive > 0.0 || calibration.triangles.per_pixel > 0.0);
     assert!(!calibration.lines.is_empty() && !calibration.points.is_empty());
     assert!(calibration.render_fixed > 0.0, "{calibration:?}");
+    // What was measured is what drawing costs, not a blank frame's noise: three times the
+    // primitives take longer in every family, and 4-pixel points more than 1-pixel ones.
+    let time = |cost: &bevy_sherwood::cost::LinearCost, n: f32, pixels_each: f32| {
+        cost.time(n, n * pixels_each)
+    };
+    for (family, cost, pixels) in [
+        ("triangles", calibration.triangles, 20.0),
+        ("1 px lines", calibration.lines[0], 3.0),
+        ("1 px points", calibration.points[0], 1.0),
+        ("4 px points", calibration.points[3], 16.0),
+    ] {
+        assert!(
+            time(&cost, 180_000.0, pixels) > 1.5 * time(&cost, 60_000.0, pixels),
+            "{family}: {cost:?}"
+        );
+    }
+    assert!(
+        time(&calibration.points[3], 180_000.0, 16.0)
+            > 1.1 * time(&calibration.points[0], 180_000.0, 1.0),
+        "4 px points cost no more than 1 px ones: {:?}",
+        calibration.points
+    );
     let logic = &calibration.logic;
     assert!(!logic.is_empty(), "{calibration:?}");
     assert!(

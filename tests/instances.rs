@@ -282,10 +282,73 @@ fn the_forest_pass_draws_every_producers_trees() {
         drawn.iter().any(|&(e, _)| e == hand),
         "the hand-placed tree is not drawn"
     );
-    for forest in forests {
+    for &forest in &forests {
         assert!(
             drawn.iter().any(|&(_, f)| f == forest),
             "no tree of forest {forest:?} is drawn"
         );
     }
+    // And on screen: taking each producer's trees away (not its terrain) changes the
+    // picture.
+    let mut before = screenshot(&mut app);
+    for (what, producer) in [
+        ("the hand-placed tree", None),
+        ("the first forest's trees", Some(forests[0])),
+        ("the second forest's trees", Some(forests[1])),
+    ] {
+        let trees: Vec<Entity> = match producer {
+            None => vec![hand],
+            Some(forest) => drawn
+                .iter()
+                .filter(|&&(e, f)| f == forest && e != hand)
+                .map(|&(e, _)| e)
+                .collect(),
+        };
+        for tree in trees {
+            app.world_mut().entity_mut(tree).despawn();
+        }
+        for _ in 0..4 {
+            app.update();
+        }
+        let after = screenshot(&mut app);
+        let changed = before
+            .chunks(4)
+            .zip(after.chunks(4))
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(changed > 20, "{changed} pixels changed without {what}");
+        before = after;
+    }
+}
+
+/// The image camera's picture as RGBA bytes, once the next frame has rendered.
+#[cfg(feature = "gpu-tests")]
+fn screenshot(app: &mut App) -> Vec<u8> {
+    use bevy::camera::RenderTarget;
+    use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+    use std::sync::{Arc, Mutex};
+
+    let image = app
+        .world_mut()
+        .query::<&RenderTarget>()
+        .iter(app.world())
+        .find_map(|target| match target {
+            RenderTarget::Image(image) => Some(image.handle.clone()),
+            _ => None,
+        })
+        .expect("an image camera");
+    let captured: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+    let sink = captured.clone();
+    app.world_mut().spawn(Screenshot::image(image)).observe(
+        move |event: On<ScreenshotCaptured>| {
+            *sink.lock().unwrap() = event.image.data.clone();
+        },
+    );
+    for _ in 0..20 {
+        app.update();
+        if let Some(rgba) = captured.lock().unwrap().take() {
+            return rgba;
+        }
+    }
+    panic!("no screenshot");
 }

@@ -497,6 +497,15 @@ fn opaque_geometry_hides_lines_and_points_behind_it() {
         });
     });
 
+    let red = |p: &Picture| {
+        (0..SIZE)
+            .flat_map(|y| (0..SIZE).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let c = p.pixel(x, y);
+                c[0] > 200 && c[1] < 30 && c[2] < 30
+            })
+            .count()
+    };
     let red_only = |p: &Picture| {
         (0..SIZE)
             .flat_map(|y| (0..SIZE).map(move |x| (x, y)))
@@ -527,6 +536,11 @@ fn opaque_geometry_hides_lines_and_points_behind_it() {
                 },
             );
             let not_cube = red_only(&picture);
+            // The cube is drawn either way: a blank picture passes neither case.
+            assert!(
+                red(&picture) > 100,
+                "the cube is not drawn ({what}, {where_})"
+            );
             if visible {
                 assert!(not_cube > 20, "the {what} in front of the cube is hidden");
             } else {
@@ -732,7 +746,18 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
             .collect();
         xs.iter().sum::<u32>() as f64 / xs.len().max(1) as f64
     };
-    let top = 40..90;
+    let lit_in = |p: &Picture, rows: core::ops::Range<u32>| {
+        rows.flat_map(|y| (0..SIZE).filter(move |&x| p.lit(x, y)))
+            .count()
+    };
+    // The top (rings at y = 2 and 3) and the middle (y = 1 to 2) of the column.
+    let (top, middle) = (40..90, 100..150);
+    for (name, p) in [("still", &still), ("moved", &moved)] {
+        assert!(
+            lit_in(p, top.clone()) > 20 && lit_in(p, middle.clone()) > 20,
+            "the {name} column is not drawn"
+        );
+    }
     let shift = mean_x(&moved, top.clone()) - mean_x(&still, top);
     // 0.5 m at 6 m with a 45° field of view is about 26 pixels.
     assert!(shift > 15.0, "the top moved {shift:.1} px");

@@ -9,6 +9,11 @@ use std::collections::HashMap;
 use bevy::math::Vec3;
 use bevy_sherwood::tree::*;
 
+/// `bytes` imported with the default settings and no external buffers.
+fn import(bytes: &[u8]) -> Result<TreeAnalysis, GltfTreeError> {
+    import_gltf(bytes, &GltfTreeSettings::default(), &HashMap::new())
+}
+
 /// A trunk of three 4-vertex rings (two cylinders, base below ground) and one quad leaf,
 /// in a `.glb` whose trunk node is moved by `offset` and whose leaf material is named
 /// `leaf_material`.
@@ -107,12 +112,7 @@ fn edited_glb(offset: Vec3, leaf_material: &str, edit: impl FnOnce(String) -> St
 
 #[test]
 fn trunk_and_leaves_are_told_apart_by_material_name() {
-    let analysis = import_gltf(
-        &glb(Vec3::ZERO, "Leaves"),
-        &GltfTreeSettings::default(),
-        &HashMap::new(),
-    )
-    .unwrap();
+    let analysis = import(&glb(Vec3::ZERO, "Leaves")).unwrap();
     let m = &analysis.model;
     assert_eq!(m.rings.len(), 3);
     assert_eq!(m.segments.len(), 2);
@@ -147,18 +147,8 @@ fn glb_with_ground(scale: f32) -> Vec<u8> {
 
 #[test]
 fn a_ground_plane_exported_with_the_tree_is_left_out_with_a_warning() {
-    let plain = import_gltf(
-        &glb(Vec3::ZERO, "Leaves"),
-        &GltfTreeSettings::default(),
-        &HashMap::new(),
-    )
-    .unwrap();
-    let with_ground = import_gltf(
-        &glb_with_ground(20.0),
-        &GltfTreeSettings::default(),
-        &HashMap::new(),
-    )
-    .unwrap();
+    let plain = import(&glb(Vec3::ZERO, "Leaves")).unwrap();
+    let with_ground = import(&glb_with_ground(20.0)).unwrap();
     assert_eq!(with_ground.model, plain.model, "the plane changed the tree");
     let ground: Vec<_> = with_ground
         .warnings
@@ -182,11 +172,7 @@ fn a_ground_plane_exported_with_the_tree_is_left_out_with_a_warning() {
     assert_eq!(skipped.warnings, plain.warnings);
 
     // A flat quad a tenth of the tree's height wide is not a ground plane: it stays.
-    let small = import_gltf(
-        &glb_with_ground(1.0),
-        &GltfTreeSettings::default(),
-        &HashMap::new(),
-    );
+    let small = import(&glb_with_ground(1.0));
     if let Ok(small) = small {
         assert_ne!(
             small.model, plain.model,
@@ -219,7 +205,7 @@ fn keywords_are_configurable_and_a_missing_trunk_is_an_error() {
     // "Greens" is not a default leaf keyword: the quad is read as trunk (a flat branch
     // attached to the nearest ring), so the tree has no leaves.
     let bytes = glb(Vec3::ZERO, "Greens");
-    let as_trunk = import_gltf(&bytes, &GltfTreeSettings::default(), &HashMap::new()).unwrap();
+    let as_trunk = import(&bytes).unwrap();
     assert_eq!(as_trunk.model.leaves.len(), 0);
     assert_eq!(as_trunk.model.trunk_triangle_count(), 18);
     let settings = GltfTreeSettings {
@@ -247,16 +233,12 @@ fn keywords_are_configurable_and_a_missing_trunk_is_an_error() {
 #[test]
 fn broken_files_are_refused() {
     assert!(matches!(
-        import_gltf(
-            b"not gltf at all",
-            &GltfTreeSettings::default(),
-            &HashMap::new()
-        ),
+        import(b"not gltf at all"),
         Err(GltfTreeError::Gltf(_))
     ));
     let mut truncated = glb(Vec3::ZERO, "Leaves");
     truncated.truncate(truncated.len() - 40);
-    assert!(import_gltf(&truncated, &GltfTreeSettings::default(), &HashMap::new()).is_err());
+    assert!(import(&truncated).is_err());
 }
 
 #[test]
@@ -349,11 +331,8 @@ fn meta_files_set_the_keywords_and_the_analysis_options() {
 /// a panic inside the `gltf` crate (whose readers assume a valid file).
 #[test]
 fn malformed_accessors_are_errors_not_panics() {
-    let settings = GltfTreeSettings::default();
-    let none = HashMap::new();
-    let import = |edit: &dyn Fn(String) -> String| {
-        import_gltf(&edited_glb(Vec3::ZERO, "leaf", edit), &settings, &none)
-    };
+    let import_edited =
+        |edit: &dyn Fn(String) -> String| import(&edited_glb(Vec3::ZERO, "leaf", edit));
     let cases: [(&str, &dyn Fn(String) -> String); 6] = [
         // Float indices: the gltf crate's index reader hits `unreachable!` on them.
         ("float indices", &|j| {
@@ -403,7 +382,7 @@ fn malformed_accessors_are_errors_not_panics() {
             glb(Vec3::ZERO, "leaf"),
             "{case}: the edit changed nothing"
         );
-        let error = import(edit)
+        let error = import_edited(edit)
             .err()
             .unwrap_or_else(|| panic!("{case}: imported"));
         let message = error.to_string();
@@ -523,7 +502,7 @@ proptest::proptest! {
         m in proptest::collection::vec(common::fuzz::mutation(), 1..6)
     ) {
         let bytes = common::fuzz::mutate(&glb(Vec3::ZERO, "leaf"), &m);
-        if let Ok(analysis) = import_gltf(&bytes, &GltfTreeSettings::default(), &HashMap::new()) {
+        if let Ok(analysis) = import(&bytes) {
             let valid = analysis.model.validate();
             proptest::prop_assert!(valid.is_ok(), "{:?}", valid.err());
         }

@@ -362,14 +362,19 @@ impl EcosystemDesc {
                 .iter()
                 .take_while(|p| p.0 - x < MIN_HAND_PLACED_SPACING)
                 .find(|p| (p.0 - x).hypot(p.1 - z) < MIN_HAND_PLACED_SPACING);
-            if let Some(&(_, _, j, l)) = near {
-                let (first, second) = ((i, k).min((j, l)), (i, k).max((j, l)));
+            if let Some(&other) = near {
+                // The later of the two in the file is named, with its own position.
+                let (first, second) = if (i, k) < (other.2, other.3) {
+                    ((x, z, i, k), other)
+                } else {
+                    (other, (x, z, i, k))
+                };
                 return Err(invalid(
-                    format!("species[{}].instances[{}].position", second.0, second.1),
+                    format!("species[{}].instances[{}].position", second.2, second.3),
                     format!(
-                        "({x}, {z}) is within {MIN_HAND_PLACED_SPACING} m of \
-                         species[{}].instances[{}]: two trees in one place",
-                        first.0, first.1
+                        "({}, {}) is within {MIN_HAND_PLACED_SPACING} m of \
+                         species[{}].instances[{}] at ({}, {}): two trees in one place",
+                        second.0, second.1, first.2, first.3, first.0, first.1
                     ),
                 ));
             }

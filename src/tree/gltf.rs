@@ -226,43 +226,37 @@ const GROUND_MIN_WIDTH: f32 = 0.25;
 /// its own. Returns each plane's mesh name and width; nothing is taken when no other
 /// trunk primitive would be left.
 fn take_ground_planes(primitives: &mut Vec<Primitive>) -> Vec<(String, f32)> {
-    let bounds: Vec<Bounds> = primitives.iter().map(Primitive::bounds).collect();
-    let flat: Vec<bool> = primitives
+    // Per primitive: its bounds, its horizontal width, and whether it is a flat
+    // non-leaf (a ground plane candidate).
+    let shapes: Vec<(Bounds, f32, bool)> = primitives
         .iter()
-        .zip(&bounds)
-        .map(|(p, b)| {
+        .map(|p| {
+            let b = p.bounds();
             let size = b.max - b.min;
             let width = size.x.max(size.z);
-            !p.leaf && width > 0.0 && size.y <= GROUND_FLATNESS * width
+            let flat = !p.leaf && width > 0.0 && size.y <= GROUND_FLATNESS * width;
+            (b, width, flat)
         })
         .collect();
-    let rest = bounds
+    let rest = shapes
         .iter()
-        .zip(&flat)
-        .filter(|(_, flat)| !**flat)
-        .fold(Bounds::EMPTY, |all, (b, _)| all.union(*b));
-    let other_trunk = primitives.iter().zip(&flat).any(|(p, f)| !p.leaf && !f);
+        .filter(|s| !s.2)
+        .fold(Bounds::EMPTY, |all, s| all.union(s.0));
+    let other_trunk = primitives.iter().zip(&shapes).any(|(p, s)| !p.leaf && !s.2);
     let height = rest.max.y - rest.min.y;
     if !other_trunk || height.is_nan() || height <= 0.0 {
         return Vec::new();
     }
-    let is_ground = |b: &Bounds| {
-        let size = b.max - b.min;
-        b.max.y <= rest.min.y + 2.0 * GROUND_FLATNESS * height
-            && size.x.max(size.z) >= GROUND_MIN_WIDTH * height
+    let is_ground = |&(b, width, flat): &(Bounds, f32, bool)| {
+        flat && b.max.y <= rest.min.y + 2.0 * GROUND_FLATNESS * height
+            && width >= GROUND_MIN_WIDTH * height
     };
-    let mut taken = Vec::new();
-    let mut k = 0;
-    primitives.retain(|p| {
-        let ground = flat[k] && is_ground(&bounds[k]);
-        if ground {
-            let size = bounds[k].max - bounds[k].min;
-            taken.push((p.mesh.clone(), size.x.max(size.z)));
-        }
-        k += 1;
-        !ground
-    });
-    taken
+    let (ground, kept): (Vec<_>, Vec<_>) = core::mem::take(primitives)
+        .into_iter()
+        .zip(&shapes)
+        .partition(|(_, shape)| is_ground(shape));
+    *primitives = kept.into_iter().map(|(p, _)| p).collect();
+    ground.into_iter().map(|(p, s)| (p.mesh, s.1)).collect()
 }
 
 /// An external buffer file a glTF document refers to.
