@@ -514,3 +514,57 @@ fn the_benefit_report_scores_every_strategy_below_its_bound_and_at_it_with_time_
         d.benefit_bound
     );
 }
+
+/// The draw lists the trees were given, priced apart from the search that chose them:
+/// their primitives at the calibration's per-primitive costs (width by width, size by
+/// size; no pixels, so a lower bound of what they cost) fit in the rendering time.
+#[test]
+fn the_draw_lists_written_are_priced_within_the_rendering_time() {
+    use bevy_sherwood::draw::ModelSlot;
+    use bevy_sherwood::tree::TreeModel;
+    let mut app = app();
+    for mode in [LodMode::Tc, LodMode::Tclod] {
+        for target in [40.0, 120.0, 400.0] {
+            frame(&mut app, with(mode, target));
+            let d = frame(&mut app, with(mode, target));
+            let world = app.world_mut();
+            let calibration = world.resource::<CostModel>().calibration().clone();
+            let sized = |costs: &[bevy_sherwood::cost::LinearCost], px: u32| {
+                costs[(px.max(1) as usize - 1).min(costs.len() - 1)].per_primitive
+            };
+            let mut query = world.query::<(&TreeInstance, &TreeDrawList)>();
+            let models = world.resource::<Assets<TreeModel>>();
+            let mut price = 0.0_f64;
+            let mut trees = 0;
+            for (tree, list) in query.iter(world) {
+                let Some(model) = models.get(&tree.model) else {
+                    continue;
+                };
+                if list.is_empty() {
+                    continue;
+                }
+                trees += 1;
+                let slot = ModelSlot::of(model);
+                let counts = slot.counts(list);
+                price += counts.triangles as f64 * f64::from(calibration.triangles.per_primitive);
+                for run in &list.trunk_lines {
+                    let n = run.segments.len().min(model.segments.len()) as f64;
+                    price += n * f64::from(sized(&calibration.lines, run.width));
+                }
+                for run in &list.leaf_points {
+                    let n = run.leaves.len().min(model.leaves.len()) as f64;
+                    price += n * f64::from(sized(&calibration.points, run.size));
+                }
+            }
+            assert!(trees > 20, "{mode:?} at {target} ms: {trees} trees drawn");
+            if d.truncated == 0 && d.overrun_ms == 0.0 {
+                let price_ms = price * 1000.0;
+                assert!(
+                    price_ms <= f64::from(d.render_budget_ms) * 1.001 + 1e-3,
+                    "{mode:?} at {target} ms: the lists cost at least {price_ms:.3} ms of {} ms: {d:?}",
+                    d.render_budget_ms
+                );
+            }
+        }
+    }
+}
