@@ -191,7 +191,10 @@ fn importances_that_value_nothing_fall_back_to_the_defaults() {
     let (mut app, _, _) = forest_in_view(60);
     app.world_mut().resource_mut::<CostSettings>().online = false;
     app.world_mut().resource_mut::<WindSettings>().enabled = false;
-    app.world_mut().resource_mut::<FrameBudget>().target_ms = 60.0;
+    // A target far above the frame's logic: the logic measured so far (real time, which
+    // the machine's load moves) barely changes the rendering time; importances that value
+    // nothing would still leave every tree at its cheapest.
+    app.world_mut().resource_mut::<FrameBudget>().target_ms = 1000.0;
     for _ in 0..3 {
         app.update();
     }

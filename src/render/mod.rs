@@ -336,7 +336,7 @@ fn extract_forest(
     records.binding_limit = device.limits().max_storage_buffer_binding_size;
     let overflowed = records.left_out > 0;
     records.left_out = 0;
-    let mut trees: Vec<_> = trees.iter().collect();
+    let slots = &frame.slots;
     // More trees to draw than the device binds at once (a forest of millions, all in
     // view): the nearest are drawn, the farthest left out, rather than none.
     if overflowed {
@@ -351,44 +351,14 @@ fn extract_forest(
                 .map(|e| e.distance_squared(p))
                 .fold(f32::INFINITY, f32::min)
         };
-        trees.sort_by_cached_key(|tree| FloatOrd(distance(tree.2)));
-    }
-    let mut unlisted;
-    for (entity, instance, global, list, shading, (fixed, local, has_parent)) in trees {
-        let (Some(slot), Some(model)) = (
-            frame.slots.get(&instance.model.id()),
-            models.get(&instance.model),
-        ) else {
-            continue;
-        };
-        let mut affine = global.affine();
-        let list = match list {
-            Some(list) => list,
-            None if fixed => {
-                unlisted = TreeDrawList::full(model);
-                &unlisted
-            }
-            None => {
-                // Spawned after the Sherwood stages (in `Last`, say): no list yet, and a
-                // root's global transform not propagated yet either.
-                if let (Some(local), false) = (local, has_parent) {
-                    affine = local.compute_affine();
-                }
-                unlisted = TreeDrawList::coarsest(model);
-                &unlisted
-            }
-        };
-        // A tree the instance table left out for its transform keeps the last list it
-        // was given; it is not drawn where it cannot be.
-        if list.is_empty() || !affine.is_finite() {
-            continue;
+        let mut nearest_first: Vec<ExtractedTree> = trees.iter().collect();
+        nearest_first.sort_by_cached_key(|tree| FloatOrd(distance(tree.2)));
+        for tree in nearest_first {
+            extract_tree(records, slots, &models, moving, tree);
         }
-        let offsets = moving.and_then(|(rings, table)| rings.get(table.index_of(entity)? as usize));
-        let shading = shading
-            .copied()
-            .unwrap_or_else(|| TreeShading::of_model(model));
-        if !records.push(slot, list, affine, offsets, shading) {
-            records.left_out += 1;
+    } else {
+        for tree in &trees {
+            extract_tree(records, slots, &models, moving, tree);
         }
     }
     records.chunks.finish();
@@ -399,6 +369,60 @@ fn extract_forest(
             records.left_out as usize + records.instances.len(),
             records.binding_limit
         );
+    }
+}
+
+/// What the extraction reads of one tree.
+type ExtractedTree<'a> = (
+    Entity,
+    &'a TreeInstance,
+    &'a GlobalTransform,
+    Option<&'a TreeDrawList>,
+    Option<&'a TreeShading>,
+    (bool, Option<&'a Transform>, bool),
+);
+
+/// Adds one tree's records to the frame's, or counts it left out.
+fn extract_tree(
+    records: &mut FrameRecords,
+    slots: &HashMap<AssetId<TreeModel>, ModelSlot>,
+    models: &Assets<TreeModel>,
+    moving: Option<(&RingOffsetTable, &ForestInstances)>,
+    (entity, instance, global, list, shading, (fixed, local, has_parent)): ExtractedTree,
+) {
+    let (Some(slot), Some(model)) = (slots.get(&instance.model.id()), models.get(&instance.model))
+    else {
+        return;
+    };
+    let mut affine = global.affine();
+    let unlisted;
+    let list = match list {
+        Some(list) => list,
+        None if fixed => {
+            unlisted = TreeDrawList::full(model);
+            &unlisted
+        }
+        None => {
+            // Spawned after the Sherwood stages (in `Last`, say): no list yet, and a
+            // root's global transform not propagated yet either.
+            if let (Some(local), false) = (local, has_parent) {
+                affine = local.compute_affine();
+            }
+            unlisted = TreeDrawList::coarsest(model);
+            &unlisted
+        }
+    };
+    // A tree the instance table left out for its transform keeps the last list it
+    // was given; it is not drawn where it cannot be.
+    if list.is_empty() || !affine.is_finite() {
+        return;
+    }
+    let offsets = moving.and_then(|(rings, table)| rings.get(table.index_of(entity)? as usize));
+    let shading = shading
+        .copied()
+        .unwrap_or_else(|| TreeShading::of_model(model));
+    if !records.push(slot, list, affine, offsets, shading) {
+        records.left_out += 1;
     }
 }
 
