@@ -79,9 +79,7 @@ fn app(calibration: Calibration) -> (App, f32) {
         let world = app.world_mut();
         world.resource_mut::<CostSettings>().calibration = CalibrationChoice::Keep;
         // Still trees: swaying ones would change the selection with the real clock.
-        world
-            .resource_mut::<bevy_sherwood::wind::WindSettings>()
-            .enabled = false;
+        world.resource_mut::<WindSettings>().enabled = false;
         world
             .resource_mut::<CostModel>()
             .set_calibration(calibration);
