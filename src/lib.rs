@@ -46,7 +46,8 @@ pub mod prelude {
         LodLadder, generate_ladder,
     };
     pub use crate::lod::{
-        FrameBudget, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin, StrategyKind,
+        FrameBudget, FrameGoal, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin,
+        StrategyKind,
     };
     #[cfg(feature = "render")]
     pub use crate::render::{ForestHud, ForestHudPlugin, ForestRenderPlugin, ForestRenderStats};

@@ -70,6 +70,28 @@ pub fn work_target(target: f32, period: Option<f32>, spread_factor: f32) -> f32 
     target.min(vblank_deadline(target, period) / factor)
 }
 
+/// The time a frame's work should be aimed at so that only the share of frames whose
+/// scatter reaches `spread_factor` (e.g. [`LogSpread::quantile_factor`](crate::cost::online::LogSpread::quantile_factor)
+/// at that share) take longer than `slack × target`: `slack × target / spread_factor`.
+/// `slack` is taken within 1 to 4 (1 when not finite); a factor that is not finite and
+/// positive counts as 1; never negative, 0 for a target that is not finite.
+pub fn tail_target(target: f32, slack: f32, spread_factor: f32) -> f32 {
+    if !target.is_finite() {
+        return 0.0;
+    }
+    let slack = if slack.is_finite() {
+        slack.clamp(1.0, 4.0)
+    } else {
+        1.0
+    };
+    let factor = if spread_factor.is_finite() && spread_factor > 0.0 {
+        spread_factor
+    } else {
+        1.0
+    };
+    (target.max(0.0) * slack / factor).max(0.0)
+}
+
 /// Intervals within this share of a whole number of periods are on the period's grid.
 pub const GRID_TOLERANCE: f32 = 0.03;
 /// The share of waited frames that must lie on a period's grid for it to be the display's.
@@ -135,6 +157,23 @@ mod tests {
     use super::*;
 
     const P: f32 = 1.0 / 60.0;
+
+    #[test]
+    fn the_tail_target_leaves_the_scatter_s_quantile_below_the_slack() {
+        // The scatter reaches ×1.2 at the share: aimed so that ×1.2 lands on 1.1 × target.
+        assert!((tail_target(0.1, 1.1, 1.2) - 0.1 * 1.1 / 1.2).abs() < 1e-7);
+        // A quiet machine (×1.03) is aimed above the target, never past the slack.
+        let quiet = tail_target(0.1, 1.1, 1.03);
+        assert!(quiet > 0.1 && quiet < 0.11);
+        // Out-of-range inputs: slack within 1..4, a bad factor counts as 1.
+        assert_eq!(tail_target(0.1, 0.5, 1.0), 0.1);
+        assert_eq!(tail_target(0.1, 9.0, 1.0), 0.4);
+        assert_eq!(tail_target(0.1, f32::NAN, 1.0), 0.1);
+        assert_eq!(tail_target(0.1, 1.1, f32::NAN), tail_target(0.1, 1.1, 1.0));
+        assert_eq!(tail_target(0.1, 1.1, 0.0), tail_target(0.1, 1.1, 1.0));
+        assert_eq!(tail_target(f32::INFINITY, 1.1, 1.0), 0.0);
+        assert_eq!(tail_target(-1.0, 1.1, 1.0), 0.0);
+    }
 
     #[test]
     fn a_frame_that_fits_its_target_shows_at_the_vertical_blank_at_or_after_it() {

@@ -3,7 +3,10 @@
 //! (see [`budget::deadline`](crate::budget::deadline)); and what the display made of the
 //! last measured frame, for the diagnostics.
 
-use crate::budget::deadline::{allowed_periods, periods_taken, upper_normal_quantile, work_target};
+use super::FrameGoal;
+use crate::budget::deadline::{
+    allowed_periods, periods_taken, tail_target, upper_normal_quantile, work_target,
+};
 use crate::cost::{CostModel, FrameBound, LearnedFrame, MeasuredPacing};
 use crate::display::{DisplayTiming, VsyncMode, VsyncSettings};
 
@@ -16,9 +19,10 @@ pub(super) struct Aim {
     pub(super) period: Option<f32>,
 }
 
-/// Aims a frame of `target` seconds.
+/// Aims a frame of `target` seconds at `goal`.
 pub(super) fn aim(
     target: f32,
+    goal: FrameGoal,
     display: Option<&DisplayTiming>,
     pacing: Option<&MeasuredPacing>,
     vsync: Option<&VsyncSettings>,
@@ -32,14 +36,22 @@ pub(super) fn aim(
             pacing.and_then(|p| p.period(display.and_then(DisplayTiming::refresh_period)))
         }
     };
-    let share = settings.missed_vblank_share;
-    let factor = model
-        .frame_spread()
-        .quantile_factor(upper_normal_quantile(share));
-    Aim {
-        work: work_target(target, period, factor),
-        period,
-    }
+    let spread = model.frame_spread();
+    let vblank_factor = spread.quantile_factor(upper_normal_quantile(settings.missed_vblank_share));
+    let tail = match goal {
+        FrameGoal::Mean => target,
+        FrameGoal::Tail { share, slack } => tail_target(
+            target,
+            slack,
+            spread.quantile_factor(upper_normal_quantile(share)),
+        ),
+    };
+    // Under vsync, never past the last vertical blank the target allows.
+    let work = match period {
+        Some(_) => work_target(target, period, vblank_factor).min(tail),
+        None => tail,
+    };
+    Aim { work, period }
 }
 
 /// What the display made of a measured frame.

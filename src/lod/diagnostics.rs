@@ -52,9 +52,11 @@ pub struct LodDiagnostics {
     pub measured_render_ms: f32,
     /// What had been predicted for its frame time, ms.
     pub measured_frame_predicted_ms: f32,
-    /// What this frame's work was aimed at, ms: the target, or under vsync the last
-    /// vertical blank within it less the margin the measured scatter of frame times asks
-    /// for ([`VsyncSettings::missed_vblank_share`](crate::display::VsyncSettings)).
+    /// What this frame's work was aimed at, ms: for [`FrameGoal::Tail`](super::FrameGoal::Tail)
+    /// `slack × target` less the margin the measured scatter of frame times asks for at
+    /// its share, for [`FrameGoal::Mean`](super::FrameGoal::Mean) the target; under vsync
+    /// at most the last vertical blank within the target less the margin for
+    /// [`VsyncSettings::missed_vblank_share`](crate::display::VsyncSettings).
     pub work_target_ms: f32,
     /// The display's refresh period under vsync, ms (0 without vsync).
     pub vsync_period_ms: f32,

@@ -61,6 +61,7 @@ pub(super) fn hand_out_time(
     let target = (budget.target_ms.max(0.0)) / 1000.0;
     let aim = super::aim::aim(
         target,
+        budget.goal,
         display.as_deref(),
         pacing.as_deref(),
         vsync.as_deref(),

@@ -45,7 +45,7 @@ pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
 pub use groups::{GroupImpostorOf, GroupImpostors};
 pub use hierarchical::HierarchicalCut;
 pub use settings::{
-    BenefitReport, FrameBudget, GroupSettings, LADDER_FRACTIONS, LodMode, StrategyKind,
+    BenefitReport, FrameBudget, FrameGoal, GroupSettings, LADDER_FRACTIONS, LodMode, StrategyKind,
     TARGET_WARNING_SECS,
 };
 pub use value::UNIFORM_DEPTH_RADII;
