@@ -83,8 +83,8 @@ pub struct ForestRenderPlugin;
 pub struct ForestRenderStats {
     /// Tree instances with something to draw.
     pub instances: u32,
-    /// Trees with something to draw that were left out, the farthest from the cameras
-    /// first, because their records needed more than the device binds in one buffer (a
+    /// Trees with something to draw that were left out (after the first such frame, the
+    /// farthest from the cameras), because their records needed more than the device binds in one buffer (a
     /// forest of millions in view); a warning is logged when it starts.
     pub left_out: u32,
     /// Primitives drawn per view.
@@ -364,7 +364,7 @@ fn extract_forest(
     records.chunks.finish();
     if records.left_out > 0 && !overflowed {
         warn!(
-            "bevy_sherwood: {} of the {} trees to draw are left out, the farthest first, while their records need more than this device binds in one buffer ({} bytes); fewer trees in view bring them back",
+            "bevy_sherwood: {} of the {} trees to draw are left out (from the next frame on, the farthest) while their records need more than this device binds in one buffer ({} bytes); fewer trees in view bring them back",
             records.left_out,
             records.left_out as usize + records.instances.len(),
             records.binding_limit
@@ -775,17 +775,14 @@ fn create_bind_groups(
         commands.remove_resource::<ForestBindGroups>();
         return;
     };
-    // A buffer past what the device binds at once would fail validation and quit the
-    // app: draw nothing and say why instead.
+    // Shared geometry past what the device binds at once would fail validation and quit
+    // the app: draw nothing and say why instead. (The frame's records are kept within it
+    // by the extraction, which leaves the farthest trees out.)
     let limit = device.limits().max_storage_buffer_binding_size;
     let too_large = [
         ("geometry vertices", buffers.vertices.buffer()),
         ("geometry indices", buffers.indices.buffer()),
         ("lines and points", buffers.primitives.buffer()),
-        ("instances", buffers.instances.buffer()),
-        ("chunks", buffers.chunks.buffer()),
-        ("ring offsets", buffers.ring_offsets.buffer()),
-        ("gathered ranges", buffers.gathered.buffer()),
     ]
     .into_iter()
     .find_map(|(name, buffer)| {
@@ -892,16 +889,7 @@ fn draw_forest(
 mod tests {
     use super::*;
     use crate::draw::{GpuChunk, LineRun, PointRun};
-    use crate::tree::SpeciesDesc;
-
-    fn model() -> TreeModel {
-        let text = include_str!("../../assets/species/grand.species.ron");
-        SpeciesDesc::from_ron_str(text)
-            .unwrap()
-            .generate_and_analyze()
-            .unwrap()
-            .model
-    }
+    use crate::tree::grand_model as model;
 
     /// Records whose buffers bind `limit` bytes, and the model's place in an atlas.
     fn frame(model: &TreeModel, limit: u64) -> (FrameRecords, ModelSlot) {
@@ -969,8 +957,13 @@ mod tests {
     }
 
     /// Pushes `lists` as the extraction does; the trees drawn.
-    fn push_all(records: &mut FrameRecords, slot: &ModelSlot, lists: &[TreeDrawList]) -> usize {
-        let shading = TreeShading::of_model(&model());
+    fn push_all(
+        records: &mut FrameRecords,
+        model: &TreeModel,
+        slot: &ModelSlot,
+        lists: &[TreeDrawList],
+    ) -> usize {
+        let shading = TreeShading::of_model(model);
         let mut drawn = 0;
         for list in lists {
             if records.push(slot, list, Affine3A::IDENTITY, None, shading) {
@@ -990,7 +983,7 @@ mod tests {
         let limit = 10 * size_of::<GpuInstance>() as u64;
         let (mut records, slot) = frame(&model, limit);
         let twigs = vec![twig(); 25];
-        assert_eq!(push_all(&mut records, &slot, &twigs), 10);
+        assert_eq!(push_all(&mut records, &model, &slot, &twigs), 10);
         assert_eq!((records.instances.len(), records.left_out), (10, 15));
         assert_eq!(records.counts.lines, 10);
 
@@ -998,7 +991,7 @@ mod tests {
         // tree stays behind, and what is kept binds.
         let (mut records, slot) = frame(&model, 4096);
         let lists: Vec<TreeDrawList> = (0..25).map(|k| list(&model, k)).collect();
-        let drawn = push_all(&mut records, &slot, &lists);
+        let drawn = push_all(&mut records, &model, &slot, &lists);
         assert!(drawn > 0 && drawn < 25, "{drawn}");
         assert_eq!(records.instances.len(), drawn);
         let mut counts = PrimitiveCounts::default();

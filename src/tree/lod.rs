@@ -214,16 +214,7 @@ pub fn group_lod(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tree::SpeciesDesc;
-
-    fn model() -> TreeModel {
-        let text = include_str!("../../assets/species/grand.species.ron");
-        SpeciesDesc::from_ron_str(text)
-            .unwrap()
-            .generate_and_analyze()
-            .unwrap()
-            .model
-    }
+    use crate::tree::grand_model as model;
 
     const PROJECTION: Projection = Projection {
         focal_pixels: 600.0,

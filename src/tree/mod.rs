@@ -37,3 +37,14 @@ pub use model::{
 pub use species::{
     BranchLevel, GeneratedTree, LeafDesc, LeafShape, SpeciesDesc, SpeciesError, tube,
 };
+
+/// The shipped `grand` species, generated and analysed: a full tree for unit tests.
+#[cfg(test)]
+pub(crate) fn grand_model() -> TreeModel {
+    let text = include_str!("../../assets/species/grand.species.ron");
+    SpeciesDesc::from_ron_str(text)
+        .unwrap()
+        .generate_and_analyze()
+        .unwrap()
+        .model
+}
