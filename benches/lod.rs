@@ -20,7 +20,7 @@ use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-fn forest_app(trees: u32, strategy: StrategyKind, far_refresh: u32) -> App {
+fn forest_app(trees: u32, strategy: StrategyKind, far_refresh: u32) -> (App, f32) {
     let (mut app, size) = common::forest_of(trees);
     let mut budget = app.world_mut().resource_mut::<FrameBudget>();
     budget.strategy = strategy;
@@ -45,7 +45,56 @@ fn forest_app(trees: u32, strategy: StrategyKind, far_refresh: u32) -> App {
             app.update();
         }
     }
-    app
+    (app, size)
+}
+
+/// Plants one tree a frame at a new place in the forest and fells the last one planted.
+struct Planter {
+    model: Handle<TreeModel>,
+    size: f32,
+    step: u32,
+    last: Option<Entity>,
+}
+
+impl Planter {
+    fn new(app: &mut App, size: f32) -> Self {
+        let model = app
+            .world_mut()
+            .query::<&TreeInstance>()
+            .iter(app.world())
+            .next()
+            .expect("a forest")
+            .model
+            .clone();
+        Self {
+            model,
+            size,
+            step: 0,
+            last: None,
+        }
+    }
+
+    fn plant_one(&mut self, app: &mut App) {
+        if let Some(last) = self.last.take() {
+            app.world_mut().despawn(last);
+        }
+        // A low-discrepancy walk over the forest's square.
+        self.step += 1;
+        let (u, v) = (
+            (self.step as f32 * 0.618_034).fract(),
+            (self.step as f32 * 0.754_878).fract(),
+        );
+        let at = Vec3::new(u * self.size, 0.0, v * self.size);
+        self.last = Some(
+            app.world_mut()
+                .spawn((
+                    TreeInstance::new(self.model.clone()),
+                    Transform::from_translation(at),
+                ))
+                .id(),
+        );
+        app.update();
+    }
 }
 
 /// Frames averaged for the per-stage report.
@@ -67,10 +116,32 @@ fn stages(c: &mut Criterion) {
             // calls the routine once per sample).
             let mut app = None;
             group.bench_with_input(BenchmarkId::new(name, trees), &trees, |b, &trees| {
-                let app = app.get_or_insert_with(|| forest_app(trees, strategy, far_refresh));
+                let (app, _) = app.get_or_insert_with(|| forest_app(trees, strategy, far_refresh));
                 b.iter(|| app.update());
             });
-            if let Some(app) = &mut app {
+            if let Some((app, _)) = &mut app {
+                reports.push((name, trees, stage_means(app)));
+            }
+        }
+    }
+    // An app planting one tree a frame and felling the one it planted the frame before:
+    // the instance table changes every frame.
+    for (name, strategy) in [
+        ("robin-hood-planting", StrategyKind::RobinHood),
+        ("hierarchical-planting", StrategyKind::Hierarchical),
+    ] {
+        let far_refresh = 1;
+        for trees in [2_000, 20_000, 100_000] {
+            // Built on first use, so that a filtered-out size costs no setup (criterion
+            // calls the routine once per sample).
+            let mut app = None;
+            group.bench_with_input(BenchmarkId::new(name, trees), &trees, |b, &trees| {
+                let (app, size) =
+                    app.get_or_insert_with(|| forest_app(trees, strategy, far_refresh));
+                let mut planter = Planter::new(app, *size);
+                b.iter(|| planter.plant_one(app));
+            });
+            if let Some((app, _)) = &mut app {
                 reports.push((name, trees, stage_means(app)));
             }
         }

@@ -4,10 +4,14 @@
 //!
 //! [`ForestInstances`] is kept by one system at the head of the frame
 //! ([`SherwoodSystems::Instances`](crate::schedule::SherwoodSystems::Instances)): a tree
-//! spawned or despawned changes the layout (and [`ForestInstances::layout_version`]); a
-//! tree whose `GlobalTransform` changed keeps its index and is listed in
+//! spawned or despawned changes the layout (and [`ForestInstances::layout_version`]) by
+//! an edit the later stages replay on their own per-instance state
+//! ([`ForestInstances::edits_since`]), so that planting one tree costs them one tree, not
+//! the forest; a tree whose `GlobalTransform` changed keeps its index and is listed in
 //! [`ForestInstances::moved`] for that frame. A tree with [`FixedDrawList`] stays out: it
 //! draws the list it was given.
+
+use std::ops::Range;
 
 use bevy::ecs::entity::EntityHashMap;
 use bevy::math::Affine3A;
@@ -92,15 +96,99 @@ pub struct ForestInstances {
     pub motions: Vec<u32>,
     index: EntityHashMap<u32>,
     moved: Vec<u32>,
+    edits: LayoutEdits,
     layout_version: u64,
     transforms_version: u64,
+    models_version: u64,
+}
+
+/// How [`ForestInstances`] went from one layout to the next without being laid out anew:
+/// the instances at [`removed`](Self::removed) were taken out one after another, each as
+/// by `Vec::swap_remove` (the last instance fills its place), then
+/// [`added`](Self::added) were pushed at the end. Replaying this on a per-instance `Vec`
+/// ([`apply`](Self::apply)) indexes it like the new table; every other instance keeps its
+/// index.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LayoutEdits {
+    /// The layout version the edits start from.
+    from: u64,
+    removed: Vec<u32>,
+    added: Range<u32>,
+    /// Models new to `model_ids` (appended at its end).
+    new_models: Range<u32>,
+}
+
+impl LayoutEdits {
+    /// Edits from layout `from` removing `removed` (in order) and adding `added`.
+    #[cfg(test)]
+    pub(crate) fn new(from: u64, removed: Vec<u32>, added: Range<u32>) -> Self {
+        Self {
+            from,
+            removed,
+            added,
+            new_models: 0..0,
+        }
+    }
+
+    /// The indices removed, in the order they were (each by swap-remove).
+    pub fn removed(&self) -> &[u32] {
+        &self.removed
+    }
+
+    /// The indices of the instances added (at the end of the new table).
+    pub fn added(&self) -> Range<usize> {
+        self.added.start as usize..self.added.end as usize
+    }
+
+    /// The models that joined [`ForestInstances::model_ids`] (at its end; none leave it by
+    /// an edit).
+    pub fn new_models(&self) -> Range<usize> {
+        self.new_models.start as usize..self.new_models.end as usize
+    }
+
+    /// How many instances were removed and added.
+    pub fn len(&self) -> usize {
+        self.removed.len() + self.added().len()
+    }
+
+    /// Whether nothing was removed or added.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Replays the edits on `items`, indexed like the old table: swap-removes the removed
+    /// and pushes `new(i)` for each added index `i`.
+    pub fn apply<T>(&self, items: &mut Vec<T>, mut new: impl FnMut(usize) -> T) {
+        for &i in &self.removed {
+            if (i as usize) < items.len() {
+                items.swap_remove(i as usize);
+            }
+        }
+        for i in self.added() {
+            items.push(new(i));
+        }
+    }
 }
 
 impl ForestInstances {
-    /// Changes whenever an instance was added or removed (or its model changed): every
-    /// index may have changed.
+    /// Changes whenever an instance was added or removed (or its model changed): a
+    /// per-instance array kept for an older version is indexed otherwise.
     pub fn layout_version(&self) -> u64 {
         self.layout_version
+    }
+
+    /// How to bring per-instance state kept for layout `version` to this one, when it is
+    /// the previous layout (otherwise, or after a new layout, `None`: rebuild from the
+    /// table).
+    pub fn edits_since(&self, version: u64) -> Option<&LayoutEdits> {
+        (version.wrapping_add(1) == self.layout_version && self.edits.from == version)
+            .then_some(&self.edits)
+    }
+
+    /// Changes whenever one of [`model_ids`](Self::model_ids) was loaded, changed or
+    /// removed (not when a model no instance uses did, such as a group impostor's).
+    pub fn models_version(&self) -> u64 {
+        self.models_version
     }
 
     /// Changes whenever an instance moved (or the layout changed).
@@ -108,7 +196,8 @@ impl ForestInstances {
         self.transforms_version
     }
 
-    /// The instances whose transform changed this frame, layout unchanged (ascending).
+    /// The instances whose transform changed this frame, in this frame's layout
+    /// (ascending; an instance added this frame is not listed).
     pub fn moved(&self) -> &[u32] {
         &self.moved
     }
@@ -133,25 +222,41 @@ impl ForestInstances {
         self.model_ids.get(*self.models.get(i)? as usize).copied()
     }
 
-    /// Lays the table out anew from `trees` in `order`.
-    fn lay_out<'a>(&mut self, trees: impl Iterator<Item = (Entity, &'a TreeInstance, Affine3A)>) {
-        self.entities.clear();
-        self.transforms.clear();
-        self.models.clear();
-        self.model_ids.clear();
-        self.scales.clear();
-        self.motions.clear();
-        self.index.clear();
-        self.moved.clear();
-        let mut model_index: bevy::platform::collections::HashMap<AssetId<TreeModel>, u32> =
-            Default::default();
-        for (entity, tree, transform) in trees {
+    /// Takes out `removed` (entities in the table) and appends `added` (in order), every
+    /// other instance keeping its index but the ones that fill the holes.
+    fn edit<'a>(
+        &mut self,
+        removed: &[Entity],
+        added: impl Iterator<Item = (Entity, &'a TreeInstance, Affine3A)>,
+    ) {
+        let mut holes: Vec<u32> = removed
+            .iter()
+            .filter_map(|e| self.index.remove(e))
+            .collect();
+        // Highest first: each swap-remove then moves an instance that stays.
+        holes.sort_unstable_by(|a, b| b.cmp(a));
+        for &i in &holes {
+            let i = i as usize;
+            self.entities.swap_remove(i);
+            self.transforms.swap_remove(i);
+            self.models.swap_remove(i);
+            self.scales.swap_remove(i);
+            self.motions.swap_remove(i);
+            if let Some(&moved_in) = self.entities.get(i) {
+                self.index.insert(moved_in, i as u32);
+            }
+        }
+        let first_added = self.entities.len() as u32;
+        let first_model = self.model_ids.len() as u32;
+        for (entity, tree, transform) in added {
             let id = tree.model.id();
-            let next = model_index.len() as u32;
-            let model = *model_index.entry(id).or_insert_with(|| {
-                self.model_ids.push(id);
-                next
-            });
+            let model = match self.model_ids.iter().position(|&m| m == id) {
+                Some(m) => m as u32,
+                None => {
+                    self.model_ids.push(id);
+                    self.model_ids.len() as u32 - 1
+                }
+            };
             self.index.insert(entity, self.entities.len() as u32);
             self.entities.push(entity);
             self.transforms.push(transform);
@@ -159,6 +264,12 @@ impl ForestInstances {
             self.scales.push(tree.scale);
             self.motions.push(tree.motion);
         }
+        self.edits = LayoutEdits {
+            from: self.layout_version,
+            removed: holes,
+            added: first_added..self.entities.len() as u32,
+            new_models: first_model..self.model_ids.len() as u32,
+        };
         self.layout_version += 1;
         self.transforms_version += 1;
     }
@@ -182,73 +293,171 @@ pub fn placeable(transform: &Affine3A, scale: f32) -> bool {
         && scale > 0.0
 }
 
-/// Keeps [`ForestInstances`] up to date: a new layout when instances were added, removed,
-/// given another tree or moved in or out of [`placeable`] places; otherwise the moved
-/// ones' transforms.
+/// Keeps [`ForestInstances`] up to date: an edit of the layout when instances were added,
+/// removed, given another tree or moved in or out of [`placeable`] places (a tree whose
+/// [`TreeInstance`] changed is taken out and added again); otherwise the moved ones'
+/// transforms.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "one system reading each way a tree can join or leave the table"
+)]
 pub(crate) fn track_instances(
     mut table: ResMut<ForestInstances>,
-    changed: Query<(), (Tracked, Changed<TreeInstance>)>,
+    changed: Query<Entity, (Tracked, Changed<TreeInstance>)>,
     mut removed: RemovedComponents<TreeInstance>,
-    mut fixed: RemovedComponents<FixedDrawList>,
+    mut unfixed: RemovedComponents<FixedDrawList>,
+    fixed: Query<Entity, (With<TreeInstance>, Added<FixedDrawList>)>,
     trees: Query<(Entity, &TreeInstance, &GlobalTransform), Without<FixedDrawList>>,
     moved: Query<(Entity, &TreeInstance, &GlobalTransform), (Tracked, Changed<GlobalTransform>)>,
+    mut model_events: MessageReader<AssetEvent<TreeModel>>,
     mut left_out: Local<bevy::ecs::entity::EntityHashSet>,
 ) {
     let table = &mut *table;
+    let models_changed = model_events.read().any(|event| match event {
+        AssetEvent::Added { id }
+        | AssetEvent::Modified { id }
+        | AssetEvent::Removed { id }
+        | AssetEvent::LoadedWithDependencies { id } => table.model_ids.contains(id),
+        AssetEvent::Unused { .. } => false,
+    });
+    if models_changed {
+        table.models_version += 1;
+    }
     // (`Changed` includes added. Both readers are drained every frame; trees that were
     // never in the table, such as a calibration's benchmark trees, change nothing.)
-    let left = removed
-        .read()
-        .filter(|e| table.index.contains_key(e) || left_out.remove(e))
-        .count();
-    let joined = fixed.read().filter(|&e| trees.contains(e)).count();
-    let crossed = || {
-        moved.iter().any(|(entity, tree, transform)| {
-            table.index.contains_key(&entity) != placeable(&transform.affine(), tree.scale)
+    let mut leaving = Vec::new();
+    for entity in removed.read() {
+        left_out.remove(&entity);
+        if table.index.contains_key(&entity) {
+            leaving.push(entity);
+        }
+    }
+    leaving.extend(fixed.iter().filter(|e| table.index.contains_key(e)));
+    let mut joining: Vec<Entity> = unfixed.read().filter(|&e| trees.contains(e)).collect();
+    for entity in &changed {
+        if table.index.contains_key(&entity) {
+            leaving.push(entity);
+        }
+        joining.push(entity);
+    }
+    for (entity, tree, transform) in &moved {
+        let placed = placeable(&transform.affine(), tree.scale);
+        match (table.index.contains_key(&entity), placed) {
+            (true, false) => leaving.push(entity),
+            (false, true) => joining.push(entity),
+            _ => {}
+        }
+    }
+    leaving.sort_unstable();
+    leaving.dedup();
+    joining.sort_unstable();
+    joining.dedup();
+    // Survivors keep their index; the new ones follow forest by forest in each forest's
+    // own instance order (hand-placed trees last), so a respawned forest is laid out the
+    // same way every time, whatever entities it was given.
+    let mut added: Vec<(Entity, &TreeInstance, Affine3A)> = joining
+        .iter()
+        .filter(|&&e| !table.index.contains_key(&e) || leaving.binary_search(&e).is_ok())
+        .filter_map(|&e| trees.get(e).ok())
+        .map(|(entity, tree, transform)| (entity, tree, transform.affine()))
+        .filter(|&(entity, tree, affine)| {
+            let placed = placeable(&affine, tree.scale);
+            if placed {
+                left_out.remove(&entity);
+            } else if left_out.insert(entity) {
+                warn!(
+                    "bevy_sherwood: tree {entity} is not drawn: its transform ({}) or \
+                     scale ({}) is not finite, or it stands over {MAX_TREE_COORDINATE} m \
+                     from the origin; it is drawn again once it is placed",
+                    affine.translation, tree.scale
+                );
+            }
+            placed
         })
-    };
-    if left + joined > 0 || !changed.is_empty() || crossed() {
-        // Survivors keep their order; the new ones follow forest by forest in each
-        // forest's own instance order (hand-placed trees last), so a respawned forest is
-        // laid out the same way every time, whatever entities it was given.
-        let mut order: Vec<(Entity, &TreeInstance, Affine3A)> = trees
-            .iter()
-            .map(|(entity, tree, transform)| (entity, tree, transform.affine()))
-            .filter(|&(entity, tree, affine)| {
-                let placed = placeable(&affine, tree.scale);
-                if placed {
-                    left_out.remove(&entity);
-                } else if left_out.insert(entity) {
-                    warn!(
-                        "bevy_sherwood: tree {entity} is not drawn: its transform ({}) or \
-                         scale ({}) is not finite, or it stands over {MAX_TREE_COORDINATE} m \
-                         from the origin; it is drawn again once it is placed",
-                        affine.translation, tree.scale
-                    );
-                }
-                placed
-            })
-            .collect();
-        order.sort_by_key(|(entity, tree, _)| {
-            (
-                table.index.get(entity).copied().unwrap_or(u32::MAX),
-                tree.forest.index_u32(),
-                tree.index,
-                entity.index_u32(),
-            )
-        });
-        table.lay_out(order.into_iter());
-        return;
+        .collect();
+    added
+        .sort_by_key(|(entity, tree, _)| (tree.forest.index_u32(), tree.index, entity.index_u32()));
+    let edited = !leaving.is_empty() || !added.is_empty();
+    if edited {
+        table.edit(&leaving, added.into_iter());
     }
     table.moved.clear();
     for (entity, _, transform) in &moved {
-        if let Some(&i) = table.index.get(&entity) {
+        if let Some(&i) = table.index.get(&entity)
+            && table.transforms[i as usize] != transform.affine()
+        {
             table.transforms[i as usize] = transform.affine();
             table.moved.push(i);
         }
     }
     if !table.moved.is_empty() {
         table.moved.sort_unstable();
-        table.transforms_version += 1;
+        if !edited {
+            table.transforms_version += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SplitMix64;
+
+    fn tree(model: u128) -> TreeInstance {
+        TreeInstance::new(Handle::Uuid(
+            bevy::asset::uuid::Uuid::from_u128(model),
+            Default::default(),
+        ))
+    }
+
+    /// Rounds of felling and planting: state kept per instance and replayed with the
+    /// table's edits stays indexed like the table, and every instance that did not fill a
+    /// hole keeps its index.
+    #[test]
+    fn state_replayed_with_the_edits_stays_indexed_like_the_table() {
+        let mut rng = SplitMix64::new(7);
+        let mut table = ForestInstances::default();
+        let mut follower: Vec<Entity> = Vec::new();
+        let mut next = 1_u32;
+        for round in 0..200 {
+            let before = table.layout_version();
+            let old: Vec<Entity> = table.entities.clone();
+            let felled: Vec<Entity> = old.iter().copied().filter(|_| rng.unit() < 0.1).collect();
+            let planted: Vec<(Entity, TreeInstance)> = (0..rng.next_u64() % 6)
+                .map(|_| {
+                    next += 1;
+                    (
+                        Entity::from_raw_u32(next).unwrap(),
+                        tree(u128::from(rng.next_u64() % 3)),
+                    )
+                })
+                .collect();
+            table.edit(
+                &felled,
+                planted
+                    .iter()
+                    .map(|(e, t)| (*e, t, Affine3A::from_translation(Vec3::splat(next as f32)))),
+            );
+            let edits = table.edits_since(before).expect("one edit after the last");
+            assert!(table.edits_since(before.wrapping_sub(1)).is_none());
+            edits.apply(&mut follower, |i| table.entities[i]);
+            assert_eq!(follower, table.entities, "round {round}");
+            // Only the last ones fill holes.
+            let kept = old.len() - felled.len();
+            for (i, e) in old.iter().enumerate().take(kept) {
+                if !felled.contains(e) {
+                    assert_eq!(table.index_of(*e), Some(i as u32), "round {round}");
+                }
+            }
+            for (i, &e) in table.entities.iter().enumerate() {
+                assert_eq!(table.index_of(e), Some(i as u32));
+                let id = table.model_id(i).unwrap();
+                assert!(table.model_ids.iter().filter(|&&m| m == id).count() == 1);
+            }
+            assert_eq!(
+                table.entities.len(),
+                old.len() - felled.len() + planted.len()
+            );
+        }
     }
 }

@@ -386,3 +386,121 @@ fn one_app_through_every_fault_keeps_its_forest_drawn_and_its_frames_short() {
     assert!(table.index_of(nan).is_none());
     assert_eq!(table.len(), 2, "the planted tree and the one from `Last`");
 }
+
+/// An app planting one tree a frame at a new place and felling the one it planted the
+/// frame before, and changing one forest tree's `TreeInstance` each frame (a game's
+/// gardener): the culling hierarchy follows each tree without being built anew, the
+/// forest keeps swaying (no frame puts every tree back at rest) and the group impostors
+/// are rebuilt at most every `GROUP_REBUILD_SECS`, not every frame.
+#[test]
+fn planting_a_tree_a_frame_rebuilds_neither_the_culling_nor_the_wind_nor_the_groups() {
+    use bevy_sherwood::culling::ForestCulling;
+    use bevy_sherwood::lod::{GROUP_REBUILD_SECS, GroupImpostorOf, StrategyKind};
+    use bevy_sherwood::wind::RingOffsetTable;
+
+    let (mut app, _, size) = forest_in_view(400);
+    app.world_mut().resource_mut::<FrameBudget>().strategy = StrategyKind::Hierarchical;
+    let groups_root = |app: &mut App| {
+        app.world_mut()
+            .query::<(Entity, &GroupImpostorOf)>()
+            .iter(app.world())
+            .find(|(_, of)| of.node == 0)
+            .map(|(entity, _)| entity)
+    };
+    for _ in 0..600 {
+        app.update();
+        let moving = app.world().resource::<RingOffsetTable>().moving();
+        if groups_root(&mut app).is_some() && moving > 0 {
+            break;
+        }
+    }
+    let mut root = groups_root(&mut app).expect("the root box has a group impostor");
+    let (rebuilds, _) = app
+        .world()
+        .resource::<ForestCulling>()
+        .rebuilds_and_refits();
+    let (model, forest_tree) = {
+        let mut trees = app
+            .world_mut()
+            .query_filtered::<(Entity, &TreeInstance), Without<GroupImpostorOf>>();
+        let (entity, tree) = trees.iter(app.world()).next().unwrap();
+        (tree.model.clone(), entity)
+    };
+    let forest = app.world().resource::<ForestInstances>().len();
+    let start = std::time::Instant::now();
+    let mut root_rebuilds = 0;
+    let mut planted = None;
+    for step in 1..=40 {
+        if let Some(tree) = planted.take() {
+            app.world_mut().despawn(tree);
+        }
+        let (u, v) = ((step as f32 * 0.618).fract(), (step as f32 * 0.755).fract());
+        let at = Vec3::new((0.1 + 0.8 * u) * size, 0.0, (0.1 + 0.8 * v) * size);
+        planted = Some(
+            app.world_mut()
+                .spawn((
+                    TreeInstance::new(model.clone()),
+                    Transform::from_translation(at),
+                ))
+                .id(),
+        );
+        app.world_mut()
+            .get_mut::<TreeInstance>(forest_tree)
+            .unwrap()
+            .set_changed();
+        app.update();
+        let moving = app.world().resource::<RingOffsetTable>().moving();
+        assert!(
+            moving > 0,
+            "step {step}: every tree was put back at rest by the planting"
+        );
+        let table = app.world().resource::<ForestInstances>();
+        assert!(table.index_of(planted.unwrap()).is_some());
+        assert_eq!(table.len(), forest + 1, "step {step}");
+        let now = groups_root(&mut app).expect("the root box keeps a group impostor");
+        if now != root {
+            root_rebuilds += 1;
+            root = now;
+        }
+    }
+    let (rebuilt, _) = app
+        .world()
+        .resource::<ForestCulling>()
+        .rebuilds_and_refits();
+    assert_eq!(
+        rebuilt, rebuilds,
+        "the culling hierarchy was built anew for planted trees"
+    );
+    let allowed = 1 + (start.elapsed().as_secs_f32() / GROUP_REBUILD_SECS).ceil() as u32;
+    assert!(
+        root_rebuilds <= allowed,
+        "the root's group impostor was rebuilt {root_rebuilds} times in 40 frames of {:.1} s",
+        start.elapsed().as_secs_f32()
+    );
+    // Right after a rebuild (for the last tree felled), one more tree: the impostors
+    // wait, then catch up with it.
+    app.world_mut().despawn(planted.unwrap());
+    let felled = std::time::Instant::now();
+    while groups_root(&mut app) == Some(root) {
+        assert!(felled.elapsed().as_secs_f32() < 10.0 * GROUP_REBUILD_SECS);
+        app.update();
+    }
+    let root = groups_root(&mut app);
+    common::plant(&mut app, "broad", Vec3::new(0.5 * size, 0.0, 0.5 * size));
+    app.update();
+    assert_eq!(groups_root(&mut app), root, "rebuilt again at once");
+    std::thread::sleep(std::time::Duration::from_secs_f32(GROUP_REBUILD_SECS));
+    app.update();
+    let caught_up = groups_root(&mut app);
+    assert_ne!(
+        caught_up, root,
+        "the impostors never show the tree planted last"
+    );
+    std::thread::sleep(std::time::Duration::from_secs_f32(GROUP_REBUILD_SECS));
+    app.update();
+    assert_eq!(
+        groups_root(&mut app),
+        caught_up,
+        "rebuilt with nothing changed"
+    );
+}

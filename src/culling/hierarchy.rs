@@ -8,6 +8,7 @@ use core::ops::Range;
 use bevy::ecs::resource::Resource;
 use bevy::math::{Affine3A, Mat4, Vec3, Vec3A, Vec4};
 
+use crate::instance::LayoutEdits;
 use crate::tree::{BoundingSphere, Bounds, TreeModel};
 
 /// Where a volume lies against the view.
@@ -142,6 +143,23 @@ impl MovedShapes {
         }
         self.slot[instance] = NOT_MOVED;
         self.used = last;
+    }
+
+    /// Takes `instance` out as `Vec::swap_remove` does from `instances` instances: the
+    /// last instance (and its moved shape) takes its index.
+    pub fn swap_remove(&mut self, instance: usize, instances: usize) {
+        self.remove(instance);
+        let Some(last) = instances.checked_sub(1) else {
+            return;
+        };
+        let last_slot = self.slot.get(last).copied().unwrap_or(NOT_MOVED);
+        if let Some(slot) = self.slot.get_mut(instance) {
+            *slot = last_slot;
+        }
+        if last_slot != NOT_MOVED {
+            self.owner[last_slot as usize] = instance as u32;
+        }
+        self.slot.truncate(last);
     }
 
     /// Instances with a moved shape.
@@ -377,6 +395,11 @@ pub struct BoxHierarchy {
     /// Leaf (Morton index) of every instance.
     leaf_of: Vec<u32>,
     node_visibility: Vec<NodeVisibility>,
+    /// Edits followed since the build.
+    edits: u64,
+    /// Per node, the edit (1, 2, …) that last changed its instances; 0: none since the
+    /// build.
+    node_edits: Vec<u64>,
 }
 
 fn level_start(level: u32) -> usize {
@@ -471,6 +494,7 @@ impl BoxHierarchy {
             }
         }
         let node_visibility = vec![NodeVisibility::Untested; nodes.len()];
+        let node_edits = vec![0; nodes.len()];
         Self {
             depth,
             grid,
@@ -479,6 +503,8 @@ impl BoxHierarchy {
             instance_bounds,
             leaf_of,
             node_visibility,
+            edits: 0,
+            node_edits,
         }
     }
 
@@ -511,6 +537,145 @@ impl BoxHierarchy {
         for &i in moved {
             self.instance_bounds[i as usize] = instance_bounds(&instances[i as usize], shapes);
         }
+        self.refit_boxes(dirty);
+        true
+    }
+
+    /// Replays `edits` (see [`LayoutEdits`]): `instances` is the edited slice, indexed like
+    /// the new table. Each removal and addition costs O(boxes + instances) moves of
+    /// indices, no sort; the boxes they touched are refitted. Returns `false`, changing
+    /// nothing, when an added instance stands outside the hierarchy's area or the edits
+    /// touch over an eighth of the instances: build anew.
+    pub fn edit(
+        &mut self,
+        edits: &LayoutEdits,
+        instances: &[CullInstance],
+        shapes: &[CullShape],
+    ) -> bool {
+        let outside = edits.added().any(|i| {
+            instances.get(i).is_none_or(|instance| {
+                let p = Vec3::from(instance.transform.translation);
+                let (min, max) = (self.grid.min, self.grid.min + self.grid.size);
+                p.x < min.x || p.z < min.z || p.x > max.x || p.z > max.z
+            })
+        });
+        if outside || edits.len() * 8 > self.leaf_of.len().max(8) {
+            return false;
+        }
+        let first_leaf = level_start(self.depth);
+        let mut dirty = Vec::with_capacity(edits.len());
+        for &i in edits.removed() {
+            let i = i as usize;
+            let leaf = self.leaf_of[i] as usize;
+            dirty.push(first_leaf + leaf);
+            self.take_from_leaf(i, leaf);
+            let last = self.leaf_of.len() - 1;
+            if i != last {
+                let last_leaf = self.leaf_of[last] as usize;
+                let (start, end) = self.nodes[first_leaf + last_leaf].instances;
+                if let Some(slot) = self.order[start as usize..end as usize]
+                    .iter_mut()
+                    .find(|o| **o as usize == last)
+                {
+                    *slot = i as u32;
+                }
+            }
+            self.leaf_of.swap_remove(i);
+            self.instance_bounds.swap_remove(i);
+        }
+        for i in edits.added() {
+            let instance = &instances[i];
+            let bounds = instance_bounds(instance, shapes);
+            let leaf = self.grid.leaf(instance.transform.translation.into());
+            self.leaf_of.push(leaf as u32);
+            self.instance_bounds.push(bounds);
+            if !bounds.is_empty() {
+                self.put_in_leaf(i as u32, leaf);
+                dirty.push(first_leaf + leaf);
+            }
+        }
+        self.edits += 1;
+        for &leaf in &dirty {
+            let mut node = leaf;
+            for level in (0..=self.depth).rev() {
+                self.node_edits[node] = self.edits;
+                if level > 0 {
+                    node = level_start(level - 1) + (node - level_start(level)) / 4;
+                }
+            }
+        }
+        self.refit_boxes(dirty);
+        true
+    }
+
+    /// Whether `other` has the same boxes over the same cells, holding the same instances
+    /// (as a build over the same instances of other shapes does).
+    pub fn same_cells(&self, other: &Self) -> bool {
+        self.depth == other.depth
+            && self.grid.min == other.grid.min
+            && self.grid.size == other.grid.size
+            && self.order == other.order
+    }
+
+    /// How many edits ([`edit`](Self::edit)) the hierarchy followed since it was built.
+    pub fn edits(&self) -> u64 {
+        self.edits
+    }
+
+    /// The edit that last changed which instances are under `node` (counting from 1; 0
+    /// when none did since the build).
+    pub fn node_edit(&self, node: usize) -> u64 {
+        self.node_edits[node]
+    }
+
+    /// Takes instance `i` out of `leaf`'s part of `order` (if it is there: an instance
+    /// without a box is not).
+    fn take_from_leaf(&mut self, i: usize, leaf: usize) {
+        let first_leaf = level_start(self.depth);
+        let (start, end) = self.nodes[first_leaf + leaf].instances;
+        let Some(at) = self.order[start as usize..end as usize]
+            .iter()
+            .position(|&o| o as usize == i)
+        else {
+            return;
+        };
+        self.order.remove(start as usize + at);
+        self.shift_ranges(leaf, -1);
+    }
+
+    /// Puts instance `i` at the end of `leaf`'s part of `order`.
+    fn put_in_leaf(&mut self, i: u32, leaf: usize) {
+        let first_leaf = level_start(self.depth);
+        let end = self.nodes[first_leaf + leaf].instances.1;
+        self.order.insert(end as usize, i);
+        self.shift_ranges(leaf, 1);
+    }
+
+    /// After one instance joined (`by` 1) or left (−1) the end of `leaf`'s range of
+    /// `order`: the boxes holding the leaf end `by` later, the boxes after it start and end
+    /// `by` later.
+    fn shift_ranges(&mut self, leaf: usize, by: i32) {
+        let shift = |v: u32| v.wrapping_add_signed(by);
+        for level in 0..=self.depth {
+            let start = level_start(level);
+            let leaves_per_box = 1_usize << (2 * (self.depth - level));
+            let holder = leaf / leaves_per_box;
+            for (b, node) in self.nodes[start..start + (1 << (2 * level))]
+                .iter_mut()
+                .enumerate()
+            {
+                if b == holder {
+                    node.instances.1 = shift(node.instances.1);
+                } else if b > holder {
+                    node.instances = (shift(node.instances.0), shift(node.instances.1));
+                }
+            }
+        }
+    }
+
+    /// Refits the leaf boxes `dirty` (node indices) from their instances' boxes, and
+    /// every box above them.
+    fn refit_boxes(&mut self, mut dirty: Vec<usize>) {
         dirty.sort_unstable();
         dirty.dedup();
         for &node in &dirty {
@@ -534,7 +699,6 @@ impl BoxHierarchy {
                     .fold(Bounds::EMPTY, |b, c| b.union(c.bounds));
             }
         }
-        true
     }
 
     /// Levels below the root.
@@ -653,5 +817,153 @@ impl BoxHierarchy {
         self.nodes[first_leaf..]
             .iter()
             .map(|n| n.instances.0..n.instances.1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use bevy::math::Quat;
+
+    use super::*;
+    use crate::rng::SplitMix64;
+
+    fn shapes() -> Vec<CullShape> {
+        (1..4)
+            .map(|h| CullShape {
+                bounds: Bounds {
+                    min: Vec3::new(-2.0, 0.0, -2.0),
+                    max: Vec3::new(2.0, 3.0 * h as f32, 2.0),
+                },
+                trunk: Bounds {
+                    min: Vec3::new(-0.3, 0.0, -0.3),
+                    max: Vec3::new(0.3, 2.0 * h as f32, 0.3),
+                },
+                groups: vec![BoundingSphere {
+                    center: Vec3::new(0.0, 2.0 * h as f32, 0.0),
+                    radius: 1.5,
+                }],
+            })
+            .collect()
+    }
+
+    fn tree(rng: &mut SplitMix64, size: f32) -> CullInstance {
+        CullInstance {
+            transform: Affine3A::from_rotation_translation(
+                Quat::from_rotation_y(rng.unit() * 6.0),
+                Vec3::new(rng.unit() * size, rng.unit(), rng.unit() * size),
+            ),
+            shape: (rng.next_u64() % 3) as u32,
+        }
+    }
+
+    /// Trees felled and planted round after round: the edited hierarchy holds each
+    /// tree once, in the box where it stands, with boxes as tight as a new build's, and
+    /// culls like brute force.
+    #[test]
+    fn an_edited_hierarchy_holds_and_culls_every_tree_where_it_stands() {
+        let mut rng = SplitMix64::new(3);
+        let shapes = shapes();
+        let size = 300.0;
+        let mut instances: Vec<CullInstance> = (0..800).map(|_| tree(&mut rng, size)).collect();
+        let area = Bounds::from_points(
+            instances
+                .iter()
+                .map(|i| Vec3::from(i.transform.translation)),
+        );
+        let mut hierarchy = BoxHierarchy::build(4, &area, &instances, &shapes);
+        let mut edits_followed = 0;
+        for round in 0..40 {
+            let removed: Vec<u32> = (0..rng.next_u64() % 20)
+                .map(|k| ((rng.next_u64() as usize) % (instances.len() - k as usize)) as u32)
+                .collect();
+            let kept = instances.len() - removed.len();
+            let added = rng.next_u64() as u32 % 20;
+            let edits = LayoutEdits::new(0, removed, kept as u32..kept as u32 + added);
+            edits.apply(&mut instances, |_| {
+                // Planted inside the hierarchy's area.
+                let mut t = tree(&mut rng, size);
+                t.transform.translation = t
+                    .transform
+                    .translation
+                    .clamp(area.min.into(), area.max.into());
+                t
+            });
+            assert!(hierarchy.edit(&edits, &instances, &shapes), "round {round}");
+            edits_followed += 1;
+            let mut held: Vec<u32> = hierarchy.node_instances(0).to_vec();
+            held.sort_unstable();
+            assert_eq!(
+                held,
+                (0..instances.len() as u32).collect::<Vec<_>>(),
+                "round {round}"
+            );
+            for node in 0..hierarchy.node_count() {
+                let tight = hierarchy
+                    .node_instances(node)
+                    .iter()
+                    .fold(Bounds::EMPTY, |b, &i| {
+                        b.union(instance_bounds(&instances[i as usize], &shapes))
+                    });
+                assert_eq!(
+                    hierarchy.node_bounds(node),
+                    tight,
+                    "round {round}, box {node}"
+                );
+            }
+            let first_leaf = level_start(hierarchy.depth());
+            for (leaf, range) in hierarchy.leaf_ranges().enumerate() {
+                for &i in &hierarchy.order[range.start as usize..range.end as usize] {
+                    let at = instances[i as usize].transform.translation.into();
+                    assert_eq!(
+                        hierarchy.grid.leaf(at),
+                        leaf,
+                        "tree {i} in leaf box {}",
+                        first_leaf + leaf
+                    );
+                }
+            }
+            let eye = Vec3::new(rng.unit() * size, 30.0, rng.unit() * size);
+            let planes = FrustumPlanes::from_clip_from_world(
+                Mat4::perspective_infinite_reverse_rh(1.0, 1.5, 0.1)
+                    * Mat4::look_at_rh(eye, Vec3::new(size / 2.0, 0.0, size / 2.0), Vec3::Y),
+            );
+            let still = MovedShapes::default();
+            let (mut fast, mut slow) = (CullResult::default(), CullResult::default());
+            hierarchy.cull(&planes, &instances, &shapes, &still, &mut fast);
+            cull_brute_force(&planes, &instances, &shapes, &still, &mut slow);
+            for i in 0..instances.len() {
+                assert_eq!(
+                    fast.trunk_visible(i),
+                    slow.trunk_visible(i),
+                    "round {round}, tree {i}"
+                );
+                assert_eq!(fast.group_visible(i, 0), slow.group_visible(i, 0));
+            }
+        }
+        assert_eq!(hierarchy.edits(), edits_followed);
+        assert!(hierarchy.node_edit(0) == edits_followed);
+    }
+
+    /// A tree planted outside the area, or edits touching most of the forest: refused,
+    /// for a new build.
+    #[test]
+    fn edits_outside_the_area_or_of_most_trees_are_refused() {
+        let mut rng = SplitMix64::new(5);
+        let shapes = shapes();
+        let mut instances: Vec<CullInstance> = (0..100).map(|_| tree(&mut rng, 50.0)).collect();
+        let area = Bounds::from_points(
+            instances
+                .iter()
+                .map(|i| Vec3::from(i.transform.translation)),
+        );
+        let mut hierarchy = BoxHierarchy::build(3, &area, &instances, &shapes);
+        let mut far = tree(&mut rng, 50.0);
+        far.transform.translation.x += 500.0;
+        instances.push(far);
+        assert!(!hierarchy.edit(&LayoutEdits::new(0, vec![], 100..101), &instances, &shapes));
+        instances.pop();
+        let many = LayoutEdits::new(0, (0..20).rev().collect(), 80..80);
+        many.apply(&mut instances, |_| unreachable!());
+        assert!(!hierarchy.edit(&many, &instances, &shapes));
     }
 }

@@ -4,11 +4,12 @@
 use bevy::prelude::*;
 
 use super::hierarchy::{
-    BoxHierarchy, CullInstance, CullResult, CullShape, FrustumPlanes, MovedShapes,
+    BoxHierarchy, CullInstance, CullResult, CullShape, FrustumPlanes, InstanceVisibility,
+    MovedShapes,
 };
-use crate::instance::ForestInstances;
+use crate::instance::{ForestInstances, LayoutEdits};
 use crate::schedule::SherwoodSystems;
-use crate::tree::{Bounds, TreeModel, TreeModelsVersion};
+use crate::tree::{Bounds, TreeModel};
 
 /// The view culling tests against. The camera the budget follows gets one automatically
 /// from its Bevy `Frustum` (with the `render` feature; see
@@ -30,7 +31,8 @@ pub struct ForestCulling {
     pub hierarchy: Option<BoxHierarchy>,
     /// This frame's answer.
     pub result: CullResult,
-    /// `(instance layout, models version, depth)` the hierarchy was built for.
+    /// `(instance layout, the instances' models version, depth)` the hierarchy was built
+    /// for.
     built: Option<(u64, u64, u32)>,
     loading: u32,
     /// Since when (`Time<Real>` seconds) some model has been loading, and how many have
@@ -40,6 +42,8 @@ pub struct ForestCulling {
     failed_logged: Vec<AssetId<TreeModel>>,
     rebuilds: u64,
     refits: u64,
+    edits: u64,
+    boxes_version: u64,
 }
 
 impl ForestCulling {
@@ -47,6 +51,13 @@ impl ForestCulling {
     /// the first hierarchy).
     pub fn layout_version(&self) -> Option<u64> {
         self.built.map(|(layout, ..)| layout)
+    }
+
+    /// Changes whenever the hierarchy is built anew for another layout or depth (not when
+    /// it follows an edit of the layout or a move, nor when only the models changed): box
+    /// indices of an older version mean other boxes. `None` before the first hierarchy.
+    pub fn hierarchy_version(&self) -> Option<u64> {
+        self.built.map(|_| self.boxes_version)
     }
 
     /// How many of the instances' models are still loading (their instances are not
@@ -67,6 +78,12 @@ impl ForestCulling {
     /// instances.
     pub fn rebuilds_and_refits(&self) -> (u64, u64) {
         (self.rebuilds, self.refits)
+    }
+
+    /// How many times the hierarchy followed an edit of the layout (trees planted or
+    /// felled) without being built anew.
+    pub fn edits_followed(&self) -> u64 {
+        self.edits
     }
 }
 
@@ -110,12 +127,15 @@ impl Plugin for CullingPlugin {
             .init_resource::<CullingSettings>()
             .register_type::<CullingDebug>()
             .register_type::<CullingSettings>()
+            // The hierarchy follows the layout before the wind reads last frame's answer.
             .add_systems(
                 PostUpdate,
-                (rebuild_hierarchy, warn_models_stuck_loading, cull_forest)
+                (rebuild_hierarchy, warn_models_stuck_loading)
                     .chain()
-                    .in_set(SherwoodSystems::Cull),
-            );
+                    .after(SherwoodSystems::Instances)
+                    .before(SherwoodSystems::Animate),
+            )
+            .add_systems(PostUpdate, cull_forest.in_set(SherwoodSystems::Cull));
         #[cfg(feature = "render")]
         app.add_systems(
             PostUpdate,
@@ -185,19 +205,31 @@ fn warn_models_stuck_loading(
     }
 }
 
-/// Builds the hierarchy when the instance layout, the models or the depth changed;
-/// refits it when instances only moved.
+/// Builds the hierarchy when the models or the depth changed, or the instance layout
+/// changed by more than [`BoxHierarchy::edit`] follows; edits it when trees were planted
+/// or felled; refits it when instances only moved.
 fn rebuild_hierarchy(
     mut culling: ResMut<ForestCulling>,
     table: Res<ForestInstances>,
     settings: Res<CullingSettings>,
     models: Res<Assets<TreeModel>>,
-    version: Res<TreeModelsVersion>,
     server: Res<AssetServer>,
 ) {
     let culling = &mut *culling;
-    let key = (table.layout_version(), version.0, settings.depth);
-    if culling.built == Some(key) {
+    let key = (
+        table.layout_version(),
+        table.models_version(),
+        settings.depth,
+    );
+    let followed = match culling.built {
+        Some(built) if built == key => true,
+        Some((layout, models_version, depth)) if (models_version, depth) == (key.1, key.2) => table
+            .edits_since(layout)
+            .is_some_and(|edits| culling.follow_edits(edits, &table, &models, &server)),
+        _ => false,
+    };
+    if followed {
+        culling.built = Some(key);
         if table.moved().is_empty() {
             return;
         }
@@ -211,54 +243,107 @@ fn rebuild_hierarchy(
             return;
         }
     }
-    // A model still loading, or whose tree failed to load, gets an empty shape: its
-    // instances are not visible (until it loads), and the rest is not held back.
     culling.shapes.clear();
     culling.loading = 0;
     for &id in &table.model_ids {
-        if let Some(model) = models.get(id) {
-            culling.shapes.push(CullShape::from(model));
-            continue;
-        }
-        if !server.load_state(id).is_failed() {
-            culling.loading += 1;
-        } else if !culling.failed_logged.contains(&id) {
-            error!(
-                "tree {:?} failed to load; its instances are not drawn",
-                server.get_path(id)
-            );
-            culling.failed_logged.push(id);
-        }
-        culling.shapes.push(CullShape {
-            bounds: Bounds::EMPTY,
-            trunk: Bounds::EMPTY,
-            groups: Vec::new(),
-        });
+        let shape = culling.shape_of(id, &models, &server);
+        culling.shapes.push(shape);
     }
     culling.instances.clear();
     culling
         .instances
-        .extend(
-            table
-                .transforms
-                .iter()
-                .zip(&table.models)
-                .map(|(transform, &model)| CullInstance {
-                    transform: *transform,
-                    shape: model,
-                }),
-        );
+        .extend((0..table.len()).map(|i| cull_instance(&table, i)));
     let area = Bounds::from_points(
         culling
             .instances
             .iter()
             .map(|i| Vec3::from(i.transform.translation)),
     );
-    culling.hierarchy = (!culling.instances.is_empty())
+    let hierarchy = (!culling.instances.is_empty())
         .then(|| BoxHierarchy::build(settings.depth, &area, &culling.instances, &culling.shapes));
+    // Group impostors and the hierarchical cut are kept per box: only a build over other
+    // trees or other cells makes them stale (a model's new shape does not).
+    let same_boxes = culling.built.map(|(layout, ..)| layout) == Some(key.0)
+        && match (&culling.hierarchy, &hierarchy) {
+            (Some(old), Some(new)) => old.same_cells(new),
+            (old, new) => old.is_none() && new.is_none(),
+        };
+    if !same_boxes {
+        culling.boxes_version += 1;
+    }
+    culling.hierarchy = hierarchy;
     culling.result.clear(culling.instances.len());
     culling.built = Some(key);
     culling.rebuilds += 1;
+}
+
+fn cull_instance(table: &ForestInstances, i: usize) -> CullInstance {
+    CullInstance {
+        transform: table.transforms[i],
+        shape: table.models[i],
+    }
+}
+
+impl ForestCulling {
+    /// The culling shape of model `id`. A model still loading, or whose tree failed to
+    /// load, gets an empty shape: its instances are not visible (until it loads), and the
+    /// rest is not held back.
+    fn shape_of(
+        &mut self,
+        id: AssetId<TreeModel>,
+        models: &Assets<TreeModel>,
+        server: &AssetServer,
+    ) -> CullShape {
+        if let Some(model) = models.get(id) {
+            return CullShape::from(model);
+        }
+        if !server.load_state(id).is_failed() {
+            self.loading += 1;
+        } else if !self.failed_logged.contains(&id) {
+            error!(
+                "tree {:?} failed to load; its instances are not drawn",
+                server.get_path(id)
+            );
+            self.failed_logged.push(id);
+        }
+        CullShape {
+            bounds: Bounds::EMPTY,
+            trunk: Bounds::EMPTY,
+            groups: Vec::new(),
+        }
+    }
+
+    /// Replays the table's `edits` on the instances, the hierarchy and last frame's
+    /// answer (so the wind, which reads it before this frame's culling, finds every tree
+    /// where it now is). `false` when the hierarchy must be built anew.
+    fn follow_edits(
+        &mut self,
+        edits: &LayoutEdits,
+        table: &ForestInstances,
+        models: &Assets<TreeModel>,
+        server: &AssetServer,
+    ) -> bool {
+        if self.hierarchy.is_none() {
+            return false;
+        }
+        let mut instances = std::mem::take(&mut self.instances);
+        edits.apply(&mut instances, |i| cull_instance(table, i));
+        let mut shapes = std::mem::take(&mut self.shapes);
+        for m in edits.new_models() {
+            shapes.push(self.shape_of(table.model_ids[m], models, server));
+        }
+        let hierarchy = self.hierarchy.as_mut().expect("checked above");
+        let edited = hierarchy.edit(edits, &instances, &shapes);
+        self.instances = instances;
+        self.shapes = shapes;
+        if edited {
+            edits.apply(&mut self.result.visibility, |_| {
+                InstanceVisibility::Invisible
+            });
+            self.edits += 1;
+        }
+        edited
+    }
 }
 
 fn cull_forest(

@@ -31,7 +31,14 @@ pub(crate) struct GroupImpostor {
     pub(crate) origin: Vec3,
     /// What counting its draw list needs.
     pub(crate) slot: ModelSlot,
+    /// Its model's vertices (counted against [`GroupSettings::max_vertices`]).
+    vertices: usize,
 }
+
+/// After trees are planted or felled, the group impostors of the boxes that hold them are
+/// rebuilt at most this often, in seconds of real time; until then they show the trees
+/// they were built with.
+pub const GROUP_REBUILD_SECS: f32 = 1.0;
 
 /// The group impostors of the culling hierarchy's boxes, built by the LOD plugin while
 /// the strategy is [`StrategyKind::Hierarchical`].
@@ -39,10 +46,15 @@ pub(crate) struct GroupImpostor {
 pub struct GroupImpostors {
     /// Per box of the hierarchy, its impostor.
     pub(crate) nodes: Vec<Option<GroupImpostor>>,
-    /// `(instance layout, hierarchy depth, settings)` they were built for.
+    /// `(hierarchy version, depth, settings)` they were built for.
     built: Option<(u64, u32, GroupSettings)>,
+    /// The hierarchy's edits they follow, and when (`Time<Real>` seconds) they were last
+    /// brought up to them.
+    edits_seen: u64,
+    built_at: f32,
     build_ms: f32,
     failed: u32,
+    builds: u64,
 }
 
 impl GroupImpostors {
@@ -67,19 +79,27 @@ impl GroupImpostors {
         self.failed
     }
 
+    /// How many times impostors were built: every box's when the strategy was chosen or
+    /// the hierarchy built anew, the changed boxes' after trees were planted or felled.
+    pub fn builds(&self) -> u64 {
+        self.builds
+    }
+
     /// Whether box `node` of the culling's hierarchy has a group impostor built for the
-    /// hierarchy it holds now (impostors of an older layout are not used).
+    /// hierarchy it holds now (impostors of an older hierarchy are not used).
     pub(crate) fn has_group(&self, culling: Option<&ForestCulling>, node: usize) -> bool {
         let current = culling.is_some_and(|c| {
             let depth = c.hierarchy.as_ref().map_or(0, crate::culling::BoxHierarchy::depth);
-            matches!((self.built, c.layout_version()), (Some((l, d, _)), Some(now)) if l == now && d == depth)
+            matches!((self.built, c.hierarchy_version()), (Some((v, d, _)), Some(now)) if v == now && d == depth)
         });
         current && self.nodes.get(node).is_some_and(Option::is_some)
     }
 }
 
-/// Builds (or rebuilds) the group impostors once the hierarchical strategy is chosen, the
-/// culling hierarchy is built for the current layout and every tree model has loaded.
+/// Builds the group impostors once the hierarchical strategy is chosen, the culling
+/// hierarchy is built for the current layout and every tree model has loaded; after
+/// trees were planted or felled, rebuilds the boxes that hold them (at most every
+/// [`GROUP_REBUILD_SECS`]).
 #[expect(
     clippy::too_many_arguments,
     reason = "a system names every resource it reads"
@@ -93,6 +113,7 @@ pub(super) fn build_group_impostors(
     mut models: ResMut<Assets<TreeModel>>,
     shadings: Query<&TreeShading>,
     mut groups: ResMut<GroupImpostors>,
+    time: Res<Time<Real>>,
 ) {
     if budget.strategy != StrategyKind::Hierarchical {
         return;
@@ -100,22 +121,43 @@ pub(super) fn build_group_impostors(
     let Some(culling) = culling else {
         return;
     };
-    let Some(hierarchy) = culling.hierarchy.as_ref() else {
+    let (Some(hierarchy), Some(version)) =
+        (culling.hierarchy.as_ref(), culling.hierarchy_version())
+    else {
         return;
     };
-    let layout = table.layout_version();
-    if culling.layout_version() != Some(layout) || culling.models_loading() > 0 {
+    if culling.layout_version() != Some(table.layout_version()) || culling.models_loading() > 0 {
         return;
     }
-    let key = (layout, hierarchy.depth(), *settings);
-    if groups.built == Some(key) {
+    let key = (version, hierarchy.depth(), *settings);
+    let now = time.elapsed_secs();
+    let every_box = groups.built != Some(key);
+    if !every_box
+        && (groups.edits_seen == hierarchy.edits() || now - groups.built_at < GROUP_REBUILD_SECS)
+    {
         return;
     }
     let start = Instant::now();
-    for old in groups.nodes.drain(..).flatten() {
+    let boxes: Vec<usize> = if every_box {
+        (0..hierarchy.node_count()).collect()
+    } else {
+        (0..hierarchy.node_count())
+            .filter(|&node| hierarchy.node_edit(node) > groups.edits_seen)
+            .collect()
+    };
+    let stale: Vec<GroupImpostor> = if every_box {
+        groups.nodes.drain(..).flatten().collect()
+    } else {
+        boxes
+            .iter()
+            .filter_map(|&node| groups.nodes.get_mut(node).and_then(Option::take))
+            .collect()
+    };
+    for old in stale {
         commands.entity(old.entity).try_despawn();
         models.remove(&old.model);
     }
+    groups.nodes.resize(hierarchy.node_count(), None);
     let mut far_first: HashMap<AssetId<TreeModel>, Vec<u32>> = HashMap::default();
     for id in &table.model_ids {
         if let Some(model) = models.get(*id) {
@@ -123,16 +165,15 @@ pub(super) fn build_group_impostors(
         }
     }
     let options = settings.model_options();
-    let mut built = Vec::with_capacity(hierarchy.node_count());
+    let mut built = Vec::with_capacity(boxes.len());
     let mut failed = 0;
-    // Boxes are numbered level by level from the root: coarsest first.
-    let mut vertices = 0usize;
+    let mut vertices: usize = groups.nodes.iter().flatten().map(|g| g.vertices).sum();
     let mut full = false;
-    for node in 0..hierarchy.node_count() {
+    // Boxes are numbered level by level from the root: coarsest first.
+    for &node in &boxes {
         let trees = hierarchy.node_instances(node);
         let bounds = hierarchy.node_bounds(node);
         if full || trees.len() < settings.min_trees.max(1) as usize || bounds.is_empty() {
-            built.push(None);
             continue;
         }
         let origin = Vec3::new(bounds.center().x, bounds.min.y, bounds.center().z);
@@ -159,26 +200,25 @@ pub(super) fn build_group_impostors(
                         hierarchy.level_of(node),
                         settings.max_vertices
                     );
-                    built.push(None);
                 } else {
-                    built.push(Some((node, origin, model, trees[0])));
+                    built.push((node, origin, model, trees[0]));
                 }
             }
             Err(error) => {
-                warn!(
-                    "group impostor of culling box {node} ({} trees): {error}",
-                    trees.len()
-                );
+                // Warned once, when every box is built: a box rebuilt after planting
+                // may fail again every time.
+                let trees = trees.len();
+                if every_box {
+                    warn!("group impostor of culling box {node} ({trees} trees): {error}");
+                } else {
+                    debug!("group impostor of culling box {node} ({trees} trees): {error}");
+                }
                 failed += 1;
-                built.push(None);
             }
         }
     }
-    for entry in built {
-        let Some((node, origin, model, first_tree)) = entry else {
-            groups.nodes.push(None);
-            continue;
-        };
+    let rebuilt = built.len();
+    for (node, origin, model, first_tree) in built {
         let shading = table
             .entities
             .get(first_tree as usize)
@@ -186,6 +226,7 @@ pub(super) fn build_group_impostors(
             .copied()
             .unwrap_or_else(|| TreeShading::of_model(&model));
         let slot = ModelSlot::of(&model);
+        let vertices = model.trunk_positions.len() + model.leaf_positions.len();
         let handle = models.add(model);
         let entity = commands
             .spawn((
@@ -200,19 +241,31 @@ pub(super) fn build_group_impostors(
                 GlobalTransform::from_translation(origin),
             ))
             .id();
-        groups.nodes.push(Some(GroupImpostor {
+        groups.nodes[node] = Some(GroupImpostor {
             entity,
             model: handle,
             origin,
             slot,
-        }));
+            vertices,
+        });
     }
     groups.built = Some(key);
-    groups.failed = failed;
+    groups.edits_seen = hierarchy.edits();
+    groups.built_at = now;
+    groups.builds += 1;
     groups.build_ms = start.elapsed().as_secs_f32() * 1000.0;
-    info!(
-        "built {} group impostors in {:.0} ms",
-        groups.len(),
-        groups.build_ms
-    );
+    groups.failed = failed;
+    if every_box {
+        info!(
+            "built {} group impostors in {:.0} ms",
+            groups.len(),
+            groups.build_ms
+        );
+    } else {
+        debug!(
+            "rebuilt {rebuilt} group impostors of {} boxes whose trees changed in {:.0} ms",
+            boxes.len(),
+            groups.build_ms
+        );
+    }
 }

@@ -434,7 +434,9 @@ pub(super) fn hand_out_time(
                         values,
                         ladders: ladder_entries,
                         rendering,
-                        layout: culling.as_deref().and_then(ForestCulling::layout_version),
+                        layout: culling
+                            .as_deref()
+                            .and_then(ForestCulling::hierarchy_version),
                         has_group: &has_group,
                     };
                     let mut group_scratch = TreeDrawList::default();

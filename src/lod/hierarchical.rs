@@ -100,7 +100,8 @@ pub(super) struct HierarchicalFrame {
     /// Per box, its visible trees' summed value and full-detail cost when it was last
     /// added with its trees.
     box_totals: HashMap<u32, (f32, f32)>,
-    /// The instance layout `previous` and `box_totals` are for.
+    /// The culling hierarchy `previous` and `box_totals` are for
+    /// ([`ForestCulling::hierarchy_version`](crate::culling::ForestCulling::hierarchy_version)).
     layout: Option<u64>,
     seed: Vec<NodeSelection>,
     /// Per instance of the table, its visible tree (or `u32::MAX`).
@@ -149,9 +150,10 @@ pub(super) struct HierarchyInputs<'a> {
     pub(super) values: &'a [f32],
     pub(super) ladders: &'a [LadderEntry],
     pub(super) rendering: f32,
-    /// The instance layout the boxes index (a new one forgets last frame's cut).
+    /// The version of the boxes (a new hierarchy forgets last frame's cut; trees planted
+    /// or felled do not).
     pub(super) layout: Option<u64>,
-    /// Whether box `node` has a group impostor (built for this layout).
+    /// Whether box `node` has a group impostor (built for these boxes).
     pub(super) has_group: &'a dyn Fn(usize) -> bool,
 }
 

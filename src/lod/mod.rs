@@ -42,7 +42,7 @@ mod settings;
 mod value;
 
 pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
-pub use groups::{GroupImpostorOf, GroupImpostors};
+pub use groups::{GROUP_REBUILD_SECS, GroupImpostorOf, GroupImpostors};
 pub use hierarchical::HierarchicalCut;
 pub use settings::{
     BenefitReport, FrameBudget, FrameGoal, GroupSettings, LADDER_FRACTIONS, LodMode, StrategyKind,

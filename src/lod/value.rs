@@ -243,7 +243,7 @@ pub(super) fn value_objects(
             let has_group = |node: usize| impostors.has_group(Some(&culling), node);
             frame.hierarchical.needed_instances(
                 boxes,
-                culling.layout_version(),
+                culling.hierarchy_version(),
                 culling.result.visibility.len(),
                 &has_group,
                 &mut frame.needed,

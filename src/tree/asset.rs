@@ -421,7 +421,7 @@ impl Plugin for TreePlugin {
             .init_resource::<TreeModelsVersion>()
             .add_systems(
                 PostUpdate,
-                bump_models_version.before(crate::schedule::SherwoodSystems::Animate),
+                bump_models_version.before(crate::schedule::SherwoodSystems::Instances),
             )
             .register_asset_loader(SpeciesLoader)
             .register_asset_loader(TreeModelLoader);

@@ -70,24 +70,38 @@ pub fn group_model(
         leaf_normals: Vec::new(),
         leaf_indices: Vec::new(),
     };
-    let mut ground = f32::NEG_INFINITY;
+    // Every stem reaches down to below the lowest stem's foot, so one ground plane under
+    // them all cuts each stem's own root, however far apart in height the trees stand (a
+    // slope, a hill); the reach lies under its tree's own ground.
+    let stems: Vec<Option<(Vec<Vec3>, Vec<f32>)>> = (0..kept)
+        .map(|k| {
+            let member = &members[k * members.len() / kept];
+            let scale = member.transform.matrix3.x_axis.length();
+            main_stem(member.model).map(|(points, radii)| {
+                let points = points
+                    .iter()
+                    .map(|&p| member.transform.transform_point3(p))
+                    .collect::<Vec<_>>();
+                (points, radii.iter().map(|r| r * scale).collect::<Vec<_>>())
+            })
+        })
+        .collect();
+    let floor = stems
+        .iter()
+        .flatten()
+        .map(|(points, radii)| points[0].y - 2.0 * radii[0])
+        .fold(f32::INFINITY, f32::min);
     let mut bark = Vec3::ZERO;
     let mut leaf_color = Vec3::ZERO;
     // The centre of every kept leaf triangle, to enlarge them all at the end.
     let mut kept_leaves: Vec<Vec3> = Vec::new();
     let mut kept_area = 0.0f32;
-    for k in 0..kept {
+    for (k, stem) in stems.into_iter().enumerate() {
         let member = &members[k * members.len() / kept];
         let model = member.model;
-        let scale = member.transform.matrix3.x_axis.length();
-        if let Some((points, radii)) = main_stem(model) {
-            let points: Vec<Vec3> = points
-                .iter()
-                .map(|&p| member.transform.transform_point3(p))
-                .collect();
-            let radii: Vec<f32> = radii.iter().map(|r| r * scale).collect();
-            // (A leaning stem's base ring reaches a radius above its centre.)
-            ground = ground.max(points[0].y + radii[0]);
+        if let Some((mut points, mut radii)) = stem {
+            points.insert(0, Vec3::new(points[0].x, floor, points[0].z));
+            radii.insert(0, radii[0]);
             tube(&mut out, &points, &radii, STEM_SIDES, 0.0);
         }
         bark += Vec3::from(model.bark_color);
@@ -144,8 +158,8 @@ pub fn group_model(
     let n = kept.max(1) as f32;
     let options = AnalysisOptions {
         // Every stem's open base is a root, wherever its tree stands.
-        ground: if ground.is_finite() {
-            ground + 1e-3 * (1.0 + ground.abs())
+        ground: if floor.is_finite() {
+            floor + 1e-3 * (1.0 + floor.abs())
         } else {
             0.0
         },
@@ -219,6 +233,53 @@ fn main_stem(model: &TreeModel) -> Option<([Vec3; 3], [f32; 3])> {
 mod tests {
     use super::*;
     use crate::tree::SpeciesDesc;
+
+    /// A culling box's kept members as an app's forest gave them (three species on a
+    /// hilly terrain, 11 m between the lowest and the highest foot, one tilted 34°;
+    /// `tests/data`: ring count, then the transform's columns): the group is built, every
+    /// stem a root. (With one ground plane at the highest foot, the highest tree's stem
+    /// had no segment above it.)
+    #[test]
+    fn a_group_of_trees_on_a_hill_roots_every_stem() {
+        let models: Vec<TreeModel> = ["slender", "broad", "grand"]
+            .iter()
+            .map(|name| {
+                let path = format!(
+                    "{}/assets/species/{name}.species.ron",
+                    env!("CARGO_MANIFEST_DIR")
+                );
+                let text = std::fs::read_to_string(path).unwrap();
+                SpeciesDesc::from_ron_str(&text)
+                    .unwrap()
+                    .generate_and_analyze()
+                    .unwrap()
+                    .model
+            })
+            .collect();
+        let far: Vec<Vec<u32>> = models.iter().map(TreeModel::far_first_leaves).collect();
+        let text = include_str!("../../tests/data/group_members_on_a_slope.txt");
+        let members: Vec<GroupMember> = text
+            .lines()
+            .map(|line| {
+                let numbers: Vec<f32> = line
+                    .split_whitespace()
+                    .map(|n| n.parse().unwrap())
+                    .collect();
+                let s = models
+                    .iter()
+                    .position(|m| m.rings.len() == numbers[0] as usize)
+                    .unwrap();
+                GroupMember {
+                    model: &models[s],
+                    transform: Affine3A::from_cols_array(&numbers[1..13].try_into().unwrap()),
+                    far_first: &far[s],
+                }
+            })
+            .collect();
+        let group = group_model(&members, &GroupModelOptions::default()).unwrap();
+        group.validate().unwrap();
+        assert_eq!(group.roots().count(), members.len());
+    }
 
     #[test]
     fn a_group_is_a_valid_tree_with_its_members_leaf_area() {

@@ -12,9 +12,9 @@ use std::collections::HashMap;
 use super::motion::{WindRig, associate, moved_bounds, ring_offsets, update_interval};
 use super::spring::{FixedStepper, Spring};
 use crate::culling::{ForestCulling, InstanceVisibility, MovedShapes};
-use crate::instance::ForestInstances;
+use crate::instance::{ForestInstances, LayoutEdits};
 use crate::schedule::SherwoodSystems;
-use crate::tree::{TreeModel, TreeModelsVersion};
+use crate::tree::TreeModel;
 use crate::view::LodView;
 
 /// Wind configuration. Changing it at run time takes effect on the next frame.
@@ -104,7 +104,6 @@ impl Plugin for WindPlugin {
             .init_resource::<RingOffsetTable>()
             .init_resource::<MovedShapes>()
             .init_resource::<WindStats>()
-            .init_resource::<TreeModelsVersion>()
             .add_systems(Startup, load_default_set)
             .add_systems(
                 PostUpdate,
@@ -187,7 +186,8 @@ struct SetThisFrame {
 /// a lower rate keeps its offsets in between, and a still one is zeroed once.
 #[derive(Default)]
 struct WindCache {
-    /// `(instance layout version, models version)` the instances were laid out for.
+    /// `(instance layout version, the instances' models version)` the instances were
+    /// laid out for.
     layout: Option<(u64, u64)>,
     /// `None` for an instance whose tree is missing (it never moves).
     instances: Vec<Option<InstanceWind>>,
@@ -209,27 +209,35 @@ impl WindCache {
     ) {
         self.instances.clear();
         table.reset(instances.len());
-        for i in 0..instances.len() {
-            let laid = instances.model_id(i).and_then(|id| {
-                let model = models.get(id)?;
-                let (_, rotation, translation) =
-                    instances.transforms[i].to_scale_rotation_translation();
-                Some(InstanceWind {
-                    model: id,
-                    motion: instances.motions[i],
-                    scale: instances.scales[i],
-                    rotation,
-                    translation,
-                    rig: UNRESOLVED,
-                    rings: model.rings.len() as u32,
-                    moving: false,
-                })
-            });
-            self.instances.push(laid);
+        self.instances
+            .extend((0..instances.len()).map(|i| instance_wind(instances, models, i)));
+    }
+
+    /// Replays the table's `edits`: the trees that stay keep swaying, the new ones start
+    /// at rest.
+    fn follow_edits(
+        &mut self,
+        edits: &LayoutEdits,
+        instances: &ForestInstances,
+        models: &Assets<TreeModel>,
+        table: &mut RingOffsetTable,
+        moved: &mut MovedShapes,
+    ) {
+        for &i in edits.removed() {
+            let i = i as usize;
+            table.swap_remove(i);
+            moved.swap_remove(i, self.instances.len());
+            if i < self.instances.len() {
+                self.instances.swap_remove(i);
+            }
+        }
+        for i in edits.added() {
+            table.push();
+            self.instances.push(instance_wind(instances, models, i));
         }
     }
 
-    /// Follows the instances that moved (same layout).
+    /// Follows the instances that moved.
     fn follow_moves(&mut self, instances: &ForestInstances) {
         for &i in instances.moved() {
             if let Some(Some(wind)) = self.instances.get_mut(i as usize) {
@@ -251,6 +259,27 @@ impl WindCache {
     }
 }
 
+/// Instance `i`'s wind state at rest (`None` while its model loads).
+fn instance_wind(
+    instances: &ForestInstances,
+    models: &Assets<TreeModel>,
+    i: usize,
+) -> Option<InstanceWind> {
+    let id = instances.model_id(i)?;
+    let model = models.get(id)?;
+    let (_, rotation, translation) = instances.transforms[i].to_scale_rotation_translation();
+    Some(InstanceWind {
+        model: id,
+        motion: instances.motions[i],
+        scale: instances.scales[i],
+        rotation,
+        translation,
+        rig: UNRESOLVED,
+        rings: model.rings.len() as u32,
+        moving: false,
+    })
+}
+
 #[expect(
     clippy::too_many_arguments,
     reason = "one system gathering the stage's inputs"
@@ -266,21 +295,29 @@ fn move_rings(
     views: Query<&LodView>,
     mut table: ResMut<RingOffsetTable>,
     mut stats: ResMut<WindStats>,
-    version: Res<TreeModelsVersion>,
     mut cache: Local<WindCache>,
 ) {
     let start_time = std::time::Instant::now();
     let cache = &mut *cache;
     let table = &mut *table;
     let moved = &mut *moved;
-    let layout = (instances.layout_version(), version.0);
-    if cache.layout != Some(layout) {
-        cache.lay_out(&instances, &models, table);
-        moved.clear();
-        cache.layout = Some(layout);
-    } else {
-        cache.follow_moves(&instances);
+    let layout = (instances.layout_version(), instances.models_version());
+    let models_changed = cache.layout.is_some_and(|(_, models)| models != layout.1);
+    match cache.layout {
+        Some(kept) if kept == layout => {}
+        Some((kept, models_version))
+            if models_version == layout.1
+                && let Some(edits) = instances.edits_since(kept) =>
+        {
+            cache.follow_edits(edits, &instances, &models, table, moved);
+        }
+        _ => {
+            cache.lay_out(&instances, &models, table);
+            moved.clear();
+        }
     }
+    cache.layout = Some(layout);
+    cache.follow_moves(&instances);
     // Last frame's visibility, when it is indexed like this frame's instances.
     let visibility = if culling.layout_version() == Some(instances.layout_version()) {
         &culling.result.visibility[..]
@@ -289,7 +326,7 @@ fn move_rings(
     };
     // A rig is derived from a tree model and a set's rules: an edited (hot-reloaded) one
     // must not keep moving its rings the old way, not even for a held frame.
-    let refresh = sets.is_changed() || version.is_changed() || settings.is_changed();
+    let refresh = sets.is_changed() || models_changed || settings.is_changed();
     if refresh {
         cache.forget_rigs();
     }

@@ -105,6 +105,20 @@ impl RingOffsetTable {
         self.moving -= 1;
     }
 
+    /// Takes `instance` out as `Vec::swap_remove` does: the last instance (and its
+    /// offsets) takes its index.
+    pub fn swap_remove(&mut self, instance: usize) {
+        if instance < self.spans.len() {
+            self.rest(instance);
+            self.spans.swap_remove(instance);
+        }
+    }
+
+    /// Adds an instance at rest at the end.
+    pub fn push(&mut self) {
+        self.spans.push([0, 0]);
+    }
+
     /// Ring offsets held, moving instances' and free blocks' together: the table's
     /// memory is this times 16 bytes (plus 8 per instance).
     pub fn rings_held(&self) -> usize {
