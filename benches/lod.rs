@@ -60,7 +60,7 @@ impl Planter {
     fn new(app: &mut App, size: f32) -> Self {
         let model = app
             .world_mut()
-            .query::<&TreeInstance>()
+            .query_filtered::<&TreeInstance, Without<FixedDrawList>>()
             .iter(app.world())
             .next()
             .expect("a forest")

@@ -218,7 +218,8 @@ fn importances_that_value_nothing_fall_back_to_the_defaults() {
 }
 
 /// A tree whose model never loads (a handle nothing will ever fill) is named once it has
-/// been loading for `LOADING_WARNING_SECS`, and the forest beside it is drawn.
+/// been loading for `LOADING_WARNING_SECS`, and the forest beside it is drawn, its group
+/// impostors built.
 #[test]
 fn a_model_that_never_loads_is_reported() {
     use bevy::time::TimeUpdateStrategy;
@@ -247,6 +248,14 @@ fn a_model_that_never_loads_is_reported() {
     }
     assert_eq!(stuck(&app), 1);
     assert!(app.world().resource::<LodDiagnostics>().visible_instances > 0);
+    // Nor does it hold back the hierarchical strategy's group impostors.
+    app.world_mut().resource_mut::<FrameBudget>().strategy = StrategyKind::Hierarchical;
+    app.update();
+    let groups = app.world().resource::<bevy_sherwood::lod::GroupImpostors>();
+    assert!(
+        !groups.is_empty(),
+        "no group impostor while a model is stuck loading"
+    );
 }
 
 /// A probe through every fault in one app, one after the other — a view removed and

@@ -544,18 +544,25 @@ impl BoxHierarchy {
     /// Replays `edits` (see [`LayoutEdits`]): `instances` is the edited slice, indexed like
     /// the new table. Each removal and addition costs O(boxes + instances) moves of
     /// indices, no sort; the boxes they touched are refitted. Returns `false`, changing
-    /// nothing, when an added instance stands outside the hierarchy's area or the edits
-    /// touch over an eighth of the instances: build anew.
+    /// nothing, when an added instance stands farther outside the hierarchy's area than a
+    /// quarter of its width, or the edits touch over an eighth of the instances: build
+    /// anew.
     pub fn edit(
         &mut self,
         edits: &LayoutEdits,
         instances: &[CullInstance],
         shapes: &[CullShape],
     ) -> bool {
+        // A tree planted past the area joins its nearest border box, which grows to hold
+        // it; one far past it would stretch that box over the rest.
+        let reach = self.grid.size * 0.25;
+        let (min, max) = (
+            self.grid.min - reach,
+            self.grid.min + self.grid.size + reach,
+        );
         let outside = edits.added().any(|i| {
             instances.get(i).is_none_or(|instance| {
                 let p = Vec3::from(instance.transform.translation);
-                let (min, max) = (self.grid.min, self.grid.min + self.grid.size);
                 p.x < min.x || p.z < min.z || p.x > max.x || p.z > max.z
             })
         });
@@ -879,15 +886,8 @@ mod tests {
             let kept = instances.len() - removed.len();
             let added = rng.next_u64() as u32 % 20;
             let edits = LayoutEdits::new(0, removed, kept as u32..kept as u32 + added);
-            edits.apply(&mut instances, |_| {
-                // Planted inside the hierarchy's area.
-                let mut t = tree(&mut rng, size);
-                t.transform.translation = t
-                    .transform
-                    .translation
-                    .clamp(area.min.into(), area.max.into());
-                t
-            });
+            // Planted over the square, some just past the first trees' area.
+            edits.apply(&mut instances, |_| tree(&mut rng, size * 1.1));
             assert!(hierarchy.edit(&edits, &instances, &shapes), "round {round}");
             edits_followed += 1;
             let mut held: Vec<u32> = hierarchy.node_instances(0).to_vec();

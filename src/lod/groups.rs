@@ -126,7 +126,10 @@ pub(super) fn build_group_impostors(
     else {
         return;
     };
-    if culling.layout_version() != Some(table.layout_version()) || culling.models_loading() > 0 {
+    // Every tree's model is waited for, but one stuck loading (warned about) does not
+    // hold back the forest's groups.
+    let waiting = culling.models_loading() > culling.models_stuck_loading();
+    if culling.layout_version() != Some(table.layout_version()) || waiting {
         return;
     }
     let key = (version, hierarchy.depth(), *settings);
