@@ -123,6 +123,8 @@ The record (--record) has one row per measured frame, times in ms:
   work_target_ms         what the frame's work was aimed at (under vsync the last
                          vertical blank within the target, less the learned margin)
   frame_spread           the learned scatter of frame times (std of the log ratio)
+  frames_over_share      share of the last second's measured frames over the goal's
+                         limit (slack x target; 1.1 x target for --goal mean)
   periods, missed_vblank with --vsync-hz: refresh periods the frame took, and 1 when
                          that is more than the target allows
   triangles, lines, points
@@ -1244,6 +1246,9 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     }),
     ("work_target_ms", |r| ms(r.diagnostics.work_target_ms)),
     ("frame_spread", |r| ratio(r.diagnostics.frame_spread)),
+    ("frames_over_share", |r| {
+        ratio(r.diagnostics.frames_over_share)
+    }),
     ("periods", |r| r.periods.to_string()),
     ("missed_vblank", |r| u8::from(r.missed_vblank).to_string()),
     ("triangles", |r| r.diagnostics.counts.triangles.to_string()),

@@ -128,6 +128,93 @@ pub struct LodDiagnostics {
     /// The target frame time is at or below the logic time this frame, so there was no
     /// rendering time to hand out and everything was drawn at its cheapest.
     pub target_below_logic: bool,
+    /// Of the frames measured in the last second, the share longer than the goal's limit
+    /// ([`FrameGoal::over_limit`](super::FrameGoal::over_limit): `slack × target` for the
+    /// default tail goal); the default goal holds it at about 5%.
+    pub frames_over_share: f32,
+}
+
+/// The measured frames of the last second, each longer than the goal's limit or not.
+#[derive(Default)]
+pub(super) struct RecentFrames {
+    /// `(frame number, frame time in seconds, over)`, oldest first.
+    frames: std::collections::VecDeque<(u64, f32, bool)>,
+    /// Their frame times together, seconds.
+    span: f32,
+}
+
+impl RecentFrames {
+    /// The window's length, seconds.
+    const SPAN: f32 = 1.0;
+
+    /// Adds measured frame `frame` (once: a frame already counted is left alone).
+    fn push(&mut self, frame: u64, interval: f32, over: bool) {
+        if frame == 0
+            || !interval.is_finite()
+            || self.frames.back().is_some_and(|&(last, ..)| last >= frame)
+        {
+            return;
+        }
+        self.frames.push_back((frame, interval, over));
+        self.span += interval;
+        // The fewest newest frames that still cover the window.
+        while let Some(&(_, oldest, _)) = self.frames.front()
+            && self.span - oldest >= Self::SPAN
+        {
+            self.frames.pop_front();
+            self.span -= oldest;
+        }
+    }
+
+    /// The share of the window's frames that were over (0 without frames).
+    fn share_over(&self) -> f32 {
+        let over = self.frames.iter().filter(|&&(.., over)| over).count();
+        over as f32 / self.frames.len().max(1) as f32
+    }
+}
+
+/// Counts the newest measured frame against the goal's limit into
+/// [`LodDiagnostics::frames_over_share`].
+pub(super) fn count_frames_over(
+    budget: Res<super::FrameBudget>,
+    mut diagnostics: ResMut<LodDiagnostics>,
+    mut recent: Local<RecentFrames>,
+) {
+    let interval = diagnostics.measured_frame_ms / 1000.0;
+    let limit = budget.goal.over_limit(budget.target_ms / 1000.0);
+    recent.push(diagnostics.measured_frame, interval, interval > limit);
+    diagnostics.frames_over_share = recent.share_over();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The window holds a second of frames: a burst of long frames counts while it is in
+    /// it and is forgotten once a second of short ones has passed.
+    #[test]
+    fn the_share_over_is_of_the_last_second_of_frames() {
+        let mut recent = RecentFrames::default();
+        for frame in 1..=20 {
+            recent.push(frame, 0.05, frame > 18);
+        }
+        assert!(
+            (recent.share_over() - 0.1).abs() < 1e-6,
+            "{}",
+            recent.share_over()
+        );
+        // The same frame reported again (the model reports the latest measured one
+        // every frame) is counted once.
+        recent.push(20, 0.05, true);
+        assert!((recent.share_over() - 0.1).abs() < 1e-6);
+        for frame in 21..=40 {
+            recent.push(frame, 0.05, false);
+        }
+        assert_eq!(recent.share_over(), 0.0);
+        // One frame longer than the window is the window.
+        recent.push(41, 3.0, true);
+        assert_eq!(recent.share_over(), 1.0);
+    }
 }
 
 /// Publishes [`LodDiagnostics`] as Bevy diagnostics each frame. Without it the resource
@@ -136,7 +223,7 @@ pub struct LodDiagnostics {
 pub struct LodDiagnosticsPlugin;
 
 /// The published diagnostics, with how each is read off [`LodDiagnostics`].
-const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 27] = [
+const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 28] = [
     (
         DiagnosticPath::const_new("sherwood/visible_objects"),
         "",
@@ -250,6 +337,11 @@ const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 27] = [
         DiagnosticPath::const_new("sherwood/frame_spread"),
         "",
         |d| f64::from(d.frame_spread),
+    ),
+    (
+        DiagnosticPath::const_new("sherwood/frames_over_share"),
+        "",
+        |d| f64::from(d.frames_over_share),
     ),
     (
         DiagnosticPath::const_new("sherwood/learned_logic_fixed"),

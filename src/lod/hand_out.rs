@@ -703,6 +703,8 @@ pub(super) fn hand_out_time(
         budget_stage_ms: (start.elapsed() - report_time).as_secs_f32() * 1000.0,
         select_stage_ms: 0.0,
         target_below_logic,
+        // Counted after the hand-out, over the measured frames (`count_frames_over`).
+        frames_over_share: diagnostics.frames_over_share,
     };
 }
 

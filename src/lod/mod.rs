@@ -100,7 +100,8 @@ impl Plugin for LodPlugin {
                         .chain()
                         .in_set(SherwoodSystems::Value),
                     hand_out_time.in_set(SherwoodSystems::Budget),
-                    write_draw_lists.in_set(SherwoodSystems::DrawLists),
+                    (write_draw_lists, diagnostics::count_frames_over)
+                        .in_set(SherwoodSystems::DrawLists),
                 ),
             );
     }

@@ -64,6 +64,20 @@ pub enum FrameGoal {
     },
 }
 
+impl FrameGoal {
+    /// The frame time past which a frame of `target` counts as over, in the target's
+    /// unit: `slack × target` for [`FrameGoal::Tail`] (the slack taken within 1 to 4, as
+    /// the budget does), and for [`FrameGoal::Mean`], which has no slack, 1.1 × target
+    /// (the default tail's), so both goals are counted alike.
+    pub fn over_limit(&self, target: f32) -> f32 {
+        let slack = match *self {
+            Self::Tail { slack, .. } => slack,
+            Self::Mean => 1.1,
+        };
+        crate::budget::deadline::tail_target(target, slack, 1.0)
+    }
+}
+
 impl Default for FrameGoal {
     fn default() -> Self {
         Self::Tail {

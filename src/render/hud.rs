@@ -157,6 +157,16 @@ fn hud_text(
             "          logic {:.1} ms + {:.1} us/tree, speed x{:.2}, {} frames",
             l.logic_fixed_ms, l.logic_per_instance_us, l.render_speed, l.frames_learned
         );
+        if let Some(b) = budget {
+            let _ = writeln!(
+                s,
+                "goal      work aimed at {:.1} ms (scatter {:.1}%), {:.0}% of the last second over {:.1} ms",
+                d.work_target_ms,
+                d.frame_spread * 100.0,
+                d.frames_over_share * 100.0,
+                b.goal.over_limit(b.target_ms)
+            );
+        }
         if d.floor_excess_ms > 0.0 {
             let _ = writeln!(
                 s,
