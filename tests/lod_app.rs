@@ -396,6 +396,33 @@ fn far_trees_decided_in_turn_keep_their_lists_and_their_time() {
         );
     }
     assert!(held > 10, "far trees take turns ({held} held)");
+    // A tree planted a frame (and the last one felled) does not make every tree decide
+    // anew.
+    let model = app
+        .world()
+        .resource::<AssetServer>()
+        .load("species/broad.species.ron");
+    let mut planted = None;
+    for k in 0..4 {
+        if let Some(tree) = planted.take() {
+            app.world_mut().despawn(tree);
+        }
+        let at = Vec3::new(60.0 + 10.0 * k as f32, 0.0, 60.0);
+        planted = Some(
+            app.world_mut()
+                .spawn((
+                    TreeInstance::new(model.clone()),
+                    Transform::from_translation(at),
+                ))
+                .id(),
+        );
+        let d = frame(&mut app, budget(2));
+        assert!(
+            d.held_trees > 10,
+            "planting {k}: only {} held",
+            d.held_trees
+        );
+    }
     // Back to every frame.
     assert_eq!(frame(&mut app, budget(1)).held_trees, 0);
 }

@@ -331,10 +331,20 @@ fn value_trees(
         budget.point_sizes,
         budget.far_refresh,
     );
-    if !holding || frame.decided_key != Some(decided_key) {
-        frame.decided.clear();
-        frame.decided_key = holding.then_some(decided_key);
+    // Trees planted or felled keep the others' decisions where they now stand.
+    let edits = frame
+        .decided_key
+        .filter(|kept| {
+            (kept.1, kept.2, kept.3, kept.4)
+                == (decided_key.1, decided_key.2, decided_key.3, decided_key.4)
+        })
+        .and_then(|kept| table.edits_since(kept.0));
+    match edits {
+        Some(edits) if holding => edits.apply(&mut frame.decided, |_| None),
+        _ if holding && frame.decided_key == Some(decided_key) => {}
+        _ => frame.decided.clear(),
     }
+    frame.decided_key = holding.then_some(decided_key);
     let turn = frame.value_frames;
     let LodFrame {
         infos,
