@@ -75,9 +75,6 @@ impl Planter {
     }
 
     fn plant_one(&mut self, app: &mut App) {
-        if let Some(last) = self.last.take() {
-            app.world_mut().despawn(last);
-        }
         // A low-discrepancy walk over the forest's square.
         self.step += 1;
         let (u, v) = (
@@ -85,14 +82,7 @@ impl Planter {
             (self.step as f32 * 0.754_878).fract(),
         );
         let at = Vec3::new(u * self.size, 0.0, v * self.size);
-        self.last = Some(
-            app.world_mut()
-                .spawn((
-                    TreeInstance::new(self.model.clone()),
-                    Transform::from_translation(at),
-                ))
-                .id(),
-        );
+        common::replant(app, &mut self.last, &self.model, at);
         app.update();
     }
 }

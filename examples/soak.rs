@@ -7,6 +7,8 @@
 //! cargo run --release --example soak -- --frames 100000 --trees 100 --target-ms 10
 //! ```
 //!
+//! `--spawn-every 0` plants nothing (to tell what the spawn cycles cost from the rest).
+//!
 //! Prints `soak frame=… rss_mb=… …` lines and a last `soak done …` line.
 
 use bevy::camera::RenderTarget;
@@ -21,7 +23,8 @@ use bevy_sherwood::prelude::*;
 #[path = "support/windowless.rs"]
 mod windowless;
 
-/// Frames between spawning a few trees and despawning the ones spawned before.
+/// Frames between spawning a few trees and despawning the ones spawned before, by
+/// default (`--spawn-every`).
 const SPAWN_EVERY: u64 = 100;
 /// Frames between strategy changes.
 const STRATEGY_EVERY: u64 = 5_000;
@@ -40,6 +43,8 @@ struct Options {
     frames: u64,
     trees: u32,
     target_ms: f32,
+    /// Frames between plantings; 0: never.
+    spawn_every: u64,
 }
 
 fn parse() -> Result<Options, String> {
@@ -47,6 +52,7 @@ fn parse() -> Result<Options, String> {
         frames: 100_000,
         trees: 100,
         target_ms: 10.0,
+        spawn_every: SPAWN_EVERY,
     };
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut it = args.iter();
@@ -57,9 +63,10 @@ fn parse() -> Result<Options, String> {
             "--frames" => o.frames = value.parse().map_err(|_| bad())?,
             "--trees" => o.trees = value.parse().map_err(|_| bad())?,
             "--target-ms" => o.target_ms = value.parse().map_err(|_| bad())?,
+            "--spawn-every" => o.spawn_every = value.parse().map_err(|_| bad())?,
             _ => {
                 return Err(format!(
-                    "unknown flag {flag} (--frames, --trees, --target-ms)"
+                    "unknown flag {flag} (--frames, --trees, --target-ms, --spawn-every)"
                 ));
             }
         }
@@ -72,6 +79,7 @@ fn parse() -> Result<Options, String> {
 struct Soak {
     planted: Vec<Entity>,
     size: f32,
+    spawn_every: u64,
 }
 
 fn main() -> AppExit {
@@ -97,6 +105,7 @@ fn main() -> AppExit {
             .after(bevy::render::renderer::render_system),
     );
     windowless::finish_plugins(&mut app);
+    app.world_mut().resource_mut::<Soak>().spawn_every = options.spawn_every;
     if let Err(e) = setup(app.world_mut(), options.trees) {
         eprintln!("soak: {e}");
         return AppExit::error();
@@ -155,10 +164,13 @@ fn setup(world: &mut World, trees: u32) -> Result<(), String> {
 }
 
 /// What the app does before frame `frame`: the camera circles the forest; every
-/// [`SPAWN_EVERY`] frames the trees planted last time go and five new ones come; every
+/// `--spawn-every` frames the trees planted last time go and five new ones come; every
 /// [`STRATEGY_EVERY`] frames the next strategy.
 fn step(world: &mut World, frame: u64) {
-    let size = world.resource::<Soak>().size;
+    let (size, spawn_every) = {
+        let soak = world.resource::<Soak>();
+        (soak.size, soak.spawn_every)
+    };
     let center = Vec3::new(0.5 * size, 0.0, 0.5 * size);
     let angle = frame as f32 * 0.002;
     let eye = center + Vec3::new(angle.cos(), 0.0, angle.sin()) * 0.7 * size + 20.0 * Vec3::Y;
@@ -166,7 +178,7 @@ fn step(world: &mut World, frame: u64) {
     for mut transform in cameras.iter_mut(world) {
         *transform = Transform::from_translation(eye).looking_at(center, Vec3::Y);
     }
-    if frame.is_multiple_of(SPAWN_EVERY) {
+    if spawn_every > 0 && frame.is_multiple_of(spawn_every) {
         let planted = std::mem::take(&mut world.resource_mut::<Soak>().planted);
         for tree in planted {
             world.despawn(tree);
@@ -176,7 +188,7 @@ fn step(world: &mut World, frame: u64) {
             .load("species/broad.species.ron");
         let mut planted = Vec::new();
         for k in 0..5u64 {
-            let t = ((frame / SPAWN_EVERY) * 5 + k) as f32 * 0.618_034;
+            let t = ((frame / spawn_every) * 5 + k) as f32 * 0.618_034;
             let at = Vec3::new(t.fract() * size, 0.0, (t * 1.7).fract() * size);
             planted.push(
                 world

@@ -440,19 +440,9 @@ fn planting_a_tree_a_frame_rebuilds_neither_the_culling_nor_the_wind_nor_the_gro
     let mut root_rebuilds = 0;
     let mut planted = None;
     for step in 1..=40 {
-        if let Some(tree) = planted.take() {
-            app.world_mut().despawn(tree);
-        }
         let (u, v) = ((step as f32 * 0.618).fract(), (step as f32 * 0.755).fract());
         let at = Vec3::new((0.1 + 0.8 * u) * size, 0.0, (0.1 + 0.8 * v) * size);
-        planted = Some(
-            app.world_mut()
-                .spawn((
-                    TreeInstance::new(model.clone()),
-                    Transform::from_translation(at),
-                ))
-                .id(),
-        );
+        common::replant(&mut app, &mut planted, &model, at);
         app.world_mut()
             .get_mut::<TreeInstance>(forest_tree)
             .unwrap()

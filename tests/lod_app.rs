@@ -404,18 +404,8 @@ fn far_trees_decided_in_turn_keep_their_lists_and_their_time() {
         .load("species/broad.species.ron");
     let mut planted = None;
     for k in 0..4 {
-        if let Some(tree) = planted.take() {
-            app.world_mut().despawn(tree);
-        }
         let at = Vec3::new(60.0 + 10.0 * k as f32, 0.0, 60.0);
-        planted = Some(
-            app.world_mut()
-                .spawn((
-                    TreeInstance::new(model.clone()),
-                    Transform::from_translation(at),
-                ))
-                .id(),
-        );
+        common::replant(&mut app, &mut planted, &model, at);
         let d = frame(&mut app, budget(2));
         assert!(
             d.held_trees > 10,

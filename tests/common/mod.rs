@@ -114,6 +114,19 @@ pub fn plant(app: &mut App, species: &str, at: Vec3) -> Entity {
         .id()
 }
 
+/// Fells the tree `planted` last (if any) and plants one of `model` at `at` in its
+/// place: an app's gardener, one tree a frame.
+pub fn replant(app: &mut App, planted: &mut Option<Entity>, model: &Handle<TreeModel>, at: Vec3) {
+    if let Some(tree) = planted.take() {
+        app.world_mut().despawn(tree);
+    }
+    let tree = (
+        TreeInstance::new(model.clone()),
+        Transform::from_translation(at),
+    );
+    *planted = Some(app.world_mut().spawn(tree).id());
+}
+
 /// A 320×180 camera rendering into an image from `eye` towards `target`, and a sun.
 #[cfg(feature = "render")]
 pub fn image_camera(app: &mut App, eye: Vec3, target: Vec3) {
