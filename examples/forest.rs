@@ -65,6 +65,9 @@ usage: forest [OPTIONS]
   --goal tail|mean      what the target promises: at most 5% of frames over 1.1 × the
                          target (tail, the default) or frames predicted at the target
                          (mean, the paper's; its tables use it)
+  --headroom F           budget F × the target (0 < F ≤ 1; default 1) while the
+                         statistics count against the target itself: a fixed-headroom
+                         baseline (Unreal's dynamic resolution aims at 0.9)
   --mode tclod|tc|static|unlimited
   --strategy robin-hood|funkhouser|funkhouser-incremental|triangle-budget|hierarchical
   --far-refresh N        decide far trees again only every N frames, in turn (Robin
@@ -196,6 +199,8 @@ struct Options {
     frames: Option<u32>,
     warmup: u32,
     target_ms: f32,
+    /// The share of the target budgeted (`--headroom`).
+    headroom: f32,
     mode: LodMode,
     goal: FrameGoal,
     strategy: StrategyKind,
@@ -255,6 +260,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         frames: None,
         warmup: 60,
         target_ms: 100.0,
+        headroom: 1.0,
         mode: LodMode::Tclod,
         goal: FrameGoal::default(),
         strategy: StrategyKind::RobinHood,
@@ -305,6 +311,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--frames" => o.frames = Some(number("--frames", it.next())?),
             "--warmup" => o.warmup = number("--warmup", it.next())?,
             "--target-ms" => o.target_ms = number("--target-ms", it.next())?,
+            "--headroom" => o.headroom = number("--headroom", it.next())?,
             "--far-refresh" => {
                 o.far_refresh = number("--far-refresh", it.next())?;
                 if o.far_refresh == 0 {
@@ -390,6 +397,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
     }
     if !(o.target_ms.is_finite() && o.target_ms > 0.0) {
         return Err("--target-ms must be a positive number".into());
+    }
+    if !(o.headroom > 0.0 && o.headroom <= 1.0) {
+        return Err("--headroom must be in (0, 1]".into());
     }
     if o.vsync_hz.is_some_and(|hz| !(hz.is_finite() && hz > 0.0)) {
         return Err("--vsync-hz must be a positive number".into());
@@ -546,7 +556,7 @@ pub(crate) fn run(args: Vec<String>) -> AppExit {
     ))
     .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
     .insert_resource(FrameBudget {
-        target_ms: options.target_ms,
+        target_ms: options.target_ms * options.headroom,
         // The pixel-driven LOD until the pass has drawn the forest once (see `measure`):
         // a strategy that drops every object at a tight target would otherwise never
         // draw, and its pipelines would compile in the middle of the measured frames.
