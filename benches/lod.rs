@@ -95,32 +95,21 @@ fn stages(c: &mut Criterion) {
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(10));
     let mut reports = Vec::new();
-    for (name, strategy, far_refresh) in [
-        ("robin-hood", StrategyKind::RobinHood, 1),
+    // The `-planting` runs plant one tree a frame and fell the one planted the frame
+    // before: the instance table changes every frame.
+    for (name, strategy, far_refresh, planting) in [
+        ("robin-hood", StrategyKind::RobinHood, 1, false),
         // Far trees decided every other frame (`FrameBudget::far_refresh`, off by default).
-        ("robin-hood-far-refresh-2", StrategyKind::RobinHood, 2),
-        ("hierarchical", StrategyKind::Hierarchical, 1),
+        (
+            "robin-hood-far-refresh-2",
+            StrategyKind::RobinHood,
+            2,
+            false,
+        ),
+        ("hierarchical", StrategyKind::Hierarchical, 1, false),
+        ("robin-hood-planting", StrategyKind::RobinHood, 1, true),
+        ("hierarchical-planting", StrategyKind::Hierarchical, 1, true),
     ] {
-        for trees in [2_000, 20_000, 100_000] {
-            // Built on first use, so that a filtered-out size costs no setup (criterion
-            // calls the routine once per sample).
-            let mut app = None;
-            group.bench_with_input(BenchmarkId::new(name, trees), &trees, |b, &trees| {
-                let (app, _) = app.get_or_insert_with(|| forest_app(trees, strategy, far_refresh));
-                b.iter(|| app.update());
-            });
-            if let Some((app, _)) = &mut app {
-                reports.push((name, trees, stage_means(app)));
-            }
-        }
-    }
-    // An app planting one tree a frame and felling the one it planted the frame before:
-    // the instance table changes every frame.
-    for (name, strategy) in [
-        ("robin-hood-planting", StrategyKind::RobinHood),
-        ("hierarchical-planting", StrategyKind::Hierarchical),
-    ] {
-        let far_refresh = 1;
         for trees in [2_000, 20_000, 100_000] {
             // Built on first use, so that a filtered-out size costs no setup (criterion
             // calls the routine once per sample).
@@ -128,8 +117,12 @@ fn stages(c: &mut Criterion) {
             group.bench_with_input(BenchmarkId::new(name, trees), &trees, |b, &trees| {
                 let (app, size) =
                     app.get_or_insert_with(|| forest_app(trees, strategy, far_refresh));
-                let mut planter = Planter::new(app, *size);
-                b.iter(|| planter.plant_one(app));
+                if planting {
+                    let mut planter = Planter::new(app, *size);
+                    b.iter(|| planter.plant_one(app));
+                } else {
+                    b.iter(|| app.update());
+                }
             });
             if let Some((app, _)) = &mut app {
                 reports.push((name, trees, stage_means(app)));

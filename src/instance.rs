@@ -159,13 +159,19 @@ impl LayoutEdits {
     /// Replays the edits on `items`, indexed like the old table: swap-removes the removed
     /// and pushes `new(i)` for each added index `i`.
     pub fn apply<T>(&self, items: &mut Vec<T>, mut new: impl FnMut(usize) -> T) {
-        for &i in &self.removed {
-            if (i as usize) < items.len() {
-                items.swap_remove(i as usize);
-            }
-        }
+        swap_remove_each(items, &self.removed);
         for i in self.added() {
             items.push(new(i));
+        }
+    }
+}
+
+/// Swap-removes `removed` from `items`, one after another (indices past the end are
+/// skipped).
+fn swap_remove_each<T>(items: &mut Vec<T>, removed: &[u32]) {
+    for &i in removed {
+        if (i as usize) < items.len() {
+            items.swap_remove(i as usize);
         }
     }
 }
@@ -235,15 +241,15 @@ impl ForestInstances {
             .collect();
         // Highest first: each swap-remove then moves an instance that stays.
         holes.sort_unstable_by(|a, b| b.cmp(a));
+        swap_remove_each(&mut self.entities, &holes);
+        swap_remove_each(&mut self.transforms, &holes);
+        swap_remove_each(&mut self.models, &holes);
+        swap_remove_each(&mut self.scales, &holes);
+        swap_remove_each(&mut self.motions, &holes);
+        // Highest first, each hole was filled by an instance that stays.
         for &i in &holes {
-            let i = i as usize;
-            self.entities.swap_remove(i);
-            self.transforms.swap_remove(i);
-            self.models.swap_remove(i);
-            self.scales.swap_remove(i);
-            self.motions.swap_remove(i);
-            if let Some(&moved_in) = self.entities.get(i) {
-                self.index.insert(moved_in, i as u32);
+            if let Some(&moved_in) = self.entities.get(i as usize) {
+                self.index.insert(moved_in, i);
             }
         }
         let first_added = self.entities.len() as u32;

@@ -577,15 +577,10 @@ impl BoxHierarchy {
             dirty.push(first_leaf + leaf);
             self.take_from_leaf(i, leaf);
             let last = self.leaf_of.len() - 1;
-            if i != last {
-                let last_leaf = self.leaf_of[last] as usize;
-                let (start, end) = self.nodes[first_leaf + last_leaf].instances;
-                if let Some(slot) = self.order[start as usize..end as usize]
-                    .iter_mut()
-                    .find(|o| **o as usize == last)
-                {
-                    *slot = i as u32;
-                }
+            if i != last
+                && let Some(at) = self.place_in_leaf(last, self.leaf_of[last] as usize)
+            {
+                self.order[at] = i as u32;
             }
             self.leaf_of.swap_remove(i);
             self.instance_bounds.swap_remove(i);
@@ -638,16 +633,20 @@ impl BoxHierarchy {
     /// Takes instance `i` out of `leaf`'s part of `order` (if it is there: an instance
     /// without a box is not).
     fn take_from_leaf(&mut self, i: usize, leaf: usize) {
-        let first_leaf = level_start(self.depth);
-        let (start, end) = self.nodes[first_leaf + leaf].instances;
-        let Some(at) = self.order[start as usize..end as usize]
+        if let Some(at) = self.place_in_leaf(i, leaf) {
+            self.order.remove(at);
+            self.shift_ranges(leaf, -1);
+        }
+    }
+
+    /// Where instance `i` is in `order`, looked for in `leaf`'s part of it.
+    fn place_in_leaf(&self, i: usize, leaf: usize) -> Option<usize> {
+        let (start, end) = self.nodes[level_start(self.depth) + leaf].instances;
+        let range = start as usize..end as usize;
+        let at = self.order[range.clone()]
             .iter()
-            .position(|&o| o as usize == i)
-        else {
-            return;
-        };
-        self.order.remove(start as usize + at);
-        self.shift_ranges(leaf, -1);
+            .position(|&o| o as usize == i)?;
+        Some(range.start + at)
     }
 
     /// Puts instance `i` at the end of `leaf`'s part of `order`.

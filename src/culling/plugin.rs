@@ -326,16 +326,15 @@ impl ForestCulling {
         if self.hierarchy.is_none() {
             return false;
         }
-        let mut instances = std::mem::take(&mut self.instances);
-        edits.apply(&mut instances, |i| cull_instance(table, i));
-        let mut shapes = std::mem::take(&mut self.shapes);
+        edits.apply(&mut self.instances, |i| cull_instance(table, i));
         for m in edits.new_models() {
-            shapes.push(self.shape_of(table.model_ids[m], models, server));
+            let shape = self.shape_of(table.model_ids[m], models, server);
+            self.shapes.push(shape);
         }
-        let hierarchy = self.hierarchy.as_mut().expect("checked above");
-        let edited = hierarchy.edit(edits, &instances, &shapes);
-        self.instances = instances;
-        self.shapes = shapes;
+        let edited = self
+            .hierarchy
+            .as_mut()
+            .is_some_and(|h| h.edit(edits, &self.instances, &self.shapes));
         if edited {
             edits.apply(&mut self.result.visibility, |_| {
                 InstanceVisibility::Invisible

@@ -73,9 +73,12 @@ pub fn group_model(
     // Every stem reaches down to below the lowest stem's foot, so one ground plane under
     // them all cuts each stem's own root, however far apart in height the trees stand (a
     // slope, a hill); the reach lies under its tree's own ground.
-    let stems: Vec<Option<(Vec<Vec3>, Vec<f32>)>> = (0..kept)
-        .map(|k| {
-            let member = &members[k * members.len() / kept];
+    let kept_members: Vec<&GroupMember> = (0..kept)
+        .map(|k| &members[k * members.len() / kept])
+        .collect();
+    let stems: Vec<Option<(Vec<Vec3>, Vec<f32>)>> = kept_members
+        .iter()
+        .map(|member| {
             let scale = member.transform.matrix3.x_axis.length();
             main_stem(member.model).map(|(points, radii)| {
                 let points = points
@@ -96,8 +99,7 @@ pub fn group_model(
     // The centre of every kept leaf triangle, to enlarge them all at the end.
     let mut kept_leaves: Vec<Vec3> = Vec::new();
     let mut kept_area = 0.0f32;
-    for (k, stem) in stems.into_iter().enumerate() {
-        let member = &members[k * members.len() / kept];
+    for (member, stem) in kept_members.iter().zip(stems) {
         let model = member.model;
         if let Some((mut points, mut radii)) = stem {
             points.insert(0, Vec3::new(points[0].x, floor, points[0].z));
