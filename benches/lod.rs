@@ -1,5 +1,5 @@
 //! The Sherwood stages of a whole frame (`app.update()` of a headless app: animate, cull,
-//! value, budget, select) for forests of 2 000, 20 000 and 100 000 trees, every tree in
+//! value, budget, draw lists) for forests of 2 000, 20 000 and 100 000 trees, every tree in
 //! view, in TCLOD mode at a 100 ms target, with Robin Hood and with the hierarchical
 //! strategy (group impostors over the culling boxes). Goals (release): under 2 ms for
 //! 20 000 visible trees with Robin Hood, under 3 ms for 100 000 with hierarchical. Robin
@@ -8,7 +8,7 @@
 //! for one strategy).
 //!
 //! After the timings it prints, per forest and strategy, the mean time of the LOD stages
-//! (value, budget, select, from `LodDiagnostics`) over 64 more frames, and the cut.
+//! (value, budget, draw lists, from `LodDiagnostics`) over 64 more frames, and the cut.
 
 use std::time::Duration;
 
@@ -130,13 +130,13 @@ fn stages(c: &mut Criterion) {
         }
     }
     group.finish();
-    for (name, trees, (d, [value, budget, select])) in reports {
+    for (name, trees, (d, [value, budget, draw_lists])) in reports {
         println!(
-            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, select {select:.2}; mean of {REPORT_FRAMES} frames); {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
+            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, draw lists {draw_lists:.2}; mean of {REPORT_FRAMES} frames); {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
             d.visible_instances,
-            value + budget + select,
+            value + budget + draw_lists,
             d.held_trees,
-            d.groups_drawn,
+            d.impostors_drawn,
             d.trees_drawn,
             d.counts.triangles,
             d.counts.lines,
@@ -145,7 +145,7 @@ fn stages(c: &mut Criterion) {
     }
 }
 
-/// The last frame's diagnostics, and the value, budget and select stages' mean times
+/// The last frame's diagnostics, and the value, budget and draw-lists stages' mean times
 /// over [`REPORT_FRAMES`] more frames.
 fn stage_means(app: &mut App) -> (LodDiagnostics, [f32; 3]) {
     let mut sums = [0.0; 3];
@@ -154,7 +154,7 @@ fn stage_means(app: &mut App) -> (LodDiagnostics, [f32; 3]) {
         let d = app.world().resource::<LodDiagnostics>();
         for (sum, ms) in
             sums.iter_mut()
-                .zip([d.value_stage_ms, d.budget_stage_ms, d.select_stage_ms])
+                .zip([d.value_stage_ms, d.budget_stage_ms, d.draw_lists_stage_ms])
         {
             *sum += ms / REPORT_FRAMES as f32;
         }

@@ -1,4 +1,4 @@
-//! The per-object searches of the Select stage alone, outside any app: each tree's TCLOD
+//! The per-object searches of the Budget stage alone, outside any app: each tree's TCLOD
 //! trunk ([`select::trunk_tclod`]) and its leaves chosen as one
 //! ([`select::leaves_at_depth`]), for 20 000 trees of the four shipped species.
 //!

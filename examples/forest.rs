@@ -134,7 +134,7 @@ The record (--record) has one row per measured frame, times in ms:
                          primitives selected
   truncated, undrawn     objects drawn below their cheapest, objects not drawn
   held_trees             far trees keeping their last decision (--far-refresh)
-  groups_drawn           group impostors drawn (hierarchical strategy)
+  impostors_drawn        group impostors drawn (hierarchical strategy)
   trees_drawn            visible trees drawn on their own (not by a group)
   wasted_ms              rendering time handed out that nobody used
   overrun_ms             predicted rendering beyond the rendering time
@@ -166,7 +166,7 @@ The record (--record) has one row per measured frame, times in ms:
   benefit, benefit_bound with --benefit: the selection's benefit (value x sqrt(cost /
                          full cost) per object) and the best any selection could reach
                          within the rendering time (0 without --benefit)
-  value_stage_ms, budget_stage_ms, select_stage_ms
+  value_stage_ms, budget_stage_ms, draw_lists_stage_ms
                          the LOD stages' times (the scoring left out)
 
 With --meshes, --summary adds levels=a/b/..: the mean over the measured frames of the
@@ -1267,7 +1267,9 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("truncated", |r| r.diagnostics.truncated.to_string()),
     ("undrawn", |r| r.diagnostics.undrawn.to_string()),
     ("held_trees", |r| r.diagnostics.held_trees.to_string()),
-    ("groups_drawn", |r| r.diagnostics.groups_drawn.to_string()),
+    ("impostors_drawn", |r| {
+        r.diagnostics.impostors_drawn.to_string()
+    }),
     ("trees_drawn", |r| r.diagnostics.trees_drawn.to_string()),
     ("wasted_ms", |r| ms(r.diagnostics.wasted_ms)),
     ("overrun_ms", |r| ms(r.diagnostics.overrun_ms)),
@@ -1334,7 +1336,9 @@ const COLUMNS: &[(&str, fn(&Row) -> String)] = &[
     ("benefit_bound", |r| ratio(r.diagnostics.benefit_bound)),
     ("value_stage_ms", |r| ms(r.diagnostics.value_stage_ms)),
     ("budget_stage_ms", |r| ms(r.diagnostics.budget_stage_ms)),
-    ("select_stage_ms", |r| ms(r.diagnostics.select_stage_ms)),
+    ("draw_lists_stage_ms", |r| {
+        ms(r.diagnostics.draw_lists_stage_ms)
+    }),
 ];
 
 /// The modes' command-line names.

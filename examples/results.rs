@@ -46,7 +46,7 @@ struct Frame {
     measured_ms: f64,
     benefit: f64,
     benefit_bound: f64,
-    /// Value, budget and select stages together.
+    /// Value, budget and draw-lists stages together.
     stages_ms: f64,
     /// Visible objects drawn with nothing.
     undrawn: f64,
@@ -206,7 +206,7 @@ fn read_run(csv: &Path) -> Result<Option<Run>, String> {
     );
     let (benefit, bound) = (optional("benefit"), optional("benefit_bound"));
     let undrawn = column("undrawn")?;
-    let stages: Vec<Vec<f64>> = ["value_stage_ms", "budget_stage_ms", "select_stage_ms"]
+    let stages: Vec<Vec<f64>> = ["value_stage_ms", "budget_stage_ms", "draw_lists_stage_ms"]
         .into_iter()
         .map(optional)
         .collect();
@@ -453,7 +453,7 @@ fn run(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>> {
          share of the best any selection could reach within the same rendering time (`budget::oracle::sqrt_benefit_bound`), \
          mean over binding frames; above 100% only where Robin Hood's cheapest representations alone overran; \
          *dropped*: visible objects drawn with nothing, mean per binding frame (Robin Hood never drops one). \
-         *stages*: the value, budget and select stages per frame. **Goals** (binding frames; for TC and TCLOD): mean \
+         *stages*: the value, budget and draw-lists stages per frame. **Goals** (binding frames; for TC and TCLOD): mean \
          within ±3% of the target, avg error ≤ 5%, over ≤ 5%, pred err ≤ 5% or 1.5 × the noise floor's.\n"
     )?;
     let mut groups: BTreeMap<(u32, String), Vec<&Run>> = BTreeMap::new();

@@ -8,8 +8,16 @@ use bevy::transform::TransformSystems;
 /// The stages of one Sherwood frame, chained in this order in [`PostUpdate`], after
 /// transform propagation (and, with the `render` feature, after camera frusta update).
 ///
-/// Every stage reads what the stages before it wrote and nothing after it, so user
-/// systems can be ordered against any stage, e.g. `.before(SherwoodSystems::Budget)`.
+/// Every stage reads what the stages before it wrote this frame, so user systems can be
+/// ordered against any stage, e.g. `.before(SherwoodSystems::Budget)`. Three reads reach
+/// a later stage's result of the frame before, each on purpose:
+///
+/// * **Animate ← Cull**: the wind steps the springs of the trees last frame's culling saw
+///   (or that are near the view); this frame's culling then bounds them where they sway.
+/// * **Value ← Budget, the last cut**: with [`StrategyKind::Hierarchical`](crate::lod::StrategyKind::Hierarchical)
+///   only the trees last frame's cut can open to this frame are valued.
+/// * **Value ← Budget, far trees**: with [`FrameBudget::far_refresh`](crate::lod::FrameBudget::far_refresh)
+///   above 1, a far tree not on its turn keeps its last decision.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum SherwoodSystems {
     /// The instance table ([`ForestInstances`](crate::instance::ForestInstances)): trees

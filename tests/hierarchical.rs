@@ -8,7 +8,7 @@ use bevy_sherwood::budget::{HierarchicalLod, NodeSelection};
 use bevy_sherwood::culling::ForestCulling;
 use bevy_sherwood::draw::TreeDrawList;
 use bevy_sherwood::lod::{
-    GroupImpostorOf, GroupImpostors, GroupSettings, HierarchicalCut, StrategyKind,
+    GroupImpostorOf, GroupImpostorSettings, GroupImpostors, HierarchicalCut, StrategyKind,
 };
 use bevy_sherwood::prelude::*;
 
@@ -87,7 +87,7 @@ fn no_visible_tree_is_left_unrepresented() {
             d = frame(&mut app, hierarchical(target));
             assert_eq!(d.undrawn, 0, "at {target} ms: {d:?}");
             assert!(
-                d.trees_drawn + d.groups_drawn > 0,
+                d.trees_drawn + d.impostors_drawn > 0,
                 "nothing drawn at {target} ms"
             );
             let seen = coverage(&mut app);
@@ -106,14 +106,52 @@ fn no_visible_tree_is_left_unrepresented() {
                     "at {target} ms instance {i} is drawn twice"
                 );
             }
-            saw_groups |= d.groups_drawn > 0;
+            saw_groups |= d.impostors_drawn > 0;
         }
         if target >= 5000.0 {
-            assert_eq!(d.groups_drawn, 0, "time to spare opens every group: {d:?}");
+            assert_eq!(
+                d.impostors_drawn, 0,
+                "time to spare opens every group: {d:?}"
+            );
             assert_eq!(d.trees_drawn as usize, in_view);
         }
     }
     assert!(saw_groups, "tight targets draw group impostors");
+}
+
+#[test]
+fn leaving_the_hierarchical_strategy_draws_every_tree_on_its_own() {
+    let others = [
+        FrameBudget {
+            strategy: StrategyKind::RobinHood,
+            target_ms: 2.0,
+            ..Default::default()
+        },
+        // A fixed mode with the strategy still set draws every visible tree too.
+        FrameBudget {
+            mode: LodMode::Unlimited,
+            ..hierarchical(2.0)
+        },
+    ];
+    for other in others {
+        let mut app = app();
+        let mut d = LodDiagnostics::default();
+        for _ in 0..3 {
+            d = frame(&mut app, hierarchical(2.0));
+        }
+        assert!(d.impostors_drawn > 0, "a tight target draws groups: {d:?}");
+        for _ in 0..2 {
+            d = frame(&mut app, other.clone());
+        }
+        assert_eq!(d.impostors_drawn, 0, "{other:?}: {d:?}");
+        for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
+            assert!(!by_group, "{other:?}: instance {i} still drawn by a group");
+            assert_eq!(
+                visible, own,
+                "{other:?}: visible instance {i} drawn on its own"
+            );
+        }
+    }
 }
 
 #[test]
@@ -128,7 +166,7 @@ fn the_cut_fits_whenever_the_coarsest_cut_fits() {
             // impostor: the whole forest as one object) does not fit.
             assert!(d.floor_excess_ms > 0.0, "at {target} ms: {d:?}");
             assert!(selection > d.render_budget_ms, "at {target} ms: {d:?}");
-            assert_eq!(d.groups_drawn, 1, "at {target} ms: {d:?}");
+            assert_eq!(d.impostors_drawn, 1, "at {target} ms: {d:?}");
             assert_eq!(d.trees_drawn, 0, "at {target} ms: {d:?}");
         } else {
             assert!(
@@ -170,7 +208,7 @@ fn the_app_draws_what_the_pure_solver_chooses() {
                 }
             }
         }
-        assert_eq!(groups, d.groups_drawn, "at {target} ms");
+        assert_eq!(groups, d.impostors_drawn, "at {target} ms");
         assert!(objects >= d.trees_drawn, "at {target} ms");
         // What was drawn is what the solver priced (searches are deterministic).
         let selection = f64::from(d.predicted_render_ms - d.render_fixed_ms) / 1000.0;
@@ -184,7 +222,7 @@ fn the_app_draws_what_the_pure_solver_chooses() {
 #[test]
 fn group_geometry_stays_within_its_vertex_budget_coarsest_first() {
     let mut app = common::default_forest_view(EYE, LOOK_AT, |app| {
-        app.insert_resource(GroupSettings {
+        app.insert_resource(GroupImpostorSettings {
             max_vertices: 4000,
             ..Default::default()
         });

@@ -20,9 +20,9 @@ fn view(depth: f32) -> TreeView {
     }
 }
 
-fn groups(model: &TreeModel, depth: f32) -> Vec<VisibleGroup> {
+fn groups(model: &TreeModel, depth: f32) -> Vec<VisibleLeafGroup> {
     (0..model.leaf_groups.len() as u32)
-        .map(|group| VisibleGroup { group, depth })
+        .map(|group| VisibleLeafGroup { group, depth })
         .collect()
 }
 

@@ -837,22 +837,22 @@ fn share_inside(part: &Picture, whole: &Picture) -> f64 {
 #[test]
 fn a_group_impostor_covers_where_its_trees_are() {
     use bevy::math::Affine3A;
-    use bevy_sherwood::tree::{GroupMember, GroupModelOptions, group_model};
+    use bevy_sherwood::tree::{GroupImpostorMember, GroupImpostorOptions, group_impostor_model};
     let model = species("slender");
     let far_first = model.far_first_leaves();
     let spacing = (model.bounds.max - model.bounds.min).xz().max_element() * 1.1;
     let places: Vec<Vec3> = (0..16)
         .map(|i| Vec3::new((i % 4) as f32 - 1.5, 0.0, (i / 4) as f32 - 1.5) * spacing)
         .collect();
-    let members: Vec<GroupMember> = places
+    let members: Vec<GroupImpostorMember> = places
         .iter()
-        .map(|&p| GroupMember {
+        .map(|&p| GroupImpostorMember {
             model: &model,
             transform: Affine3A::from_translation(p),
             far_first: &far_first,
         })
         .collect();
-    let group = group_model(&members, &GroupModelOptions::default()).unwrap();
+    let group = group_impostor_model(&members, &GroupImpostorOptions::default()).unwrap();
     let height = model.bounds.max.y;
     let target = Vec3::new(0.0, height * 0.5, 0.0);
     let eye = target + Vec3::new(0.3, 1.2, 1.0).normalize() * spacing * 9.0;

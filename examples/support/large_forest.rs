@@ -36,7 +36,7 @@ fn read(csv: &Path) -> Result<LargeRun, String> {
             .column(name)
             .map_err(|e| format!("{}: {e}", csv.display()))
     };
-    let stages: Vec<Vec<f64>> = ["value_stage_ms", "budget_stage_ms", "select_stage_ms"]
+    let stages: Vec<Vec<f64>> = ["value_stage_ms", "budget_stage_ms", "draw_lists_stage_ms"]
         .into_iter()
         .map(column)
         .collect::<Result<_, _>>()?;
@@ -51,7 +51,7 @@ fn read(csv: &Path) -> Result<LargeRun, String> {
         predicted: column("predicted_ms")?,
         floor_excess: column("floor_excess_ms")?,
         undrawn: column("undrawn")?,
-        groups: column("groups_drawn")?,
+        groups: column("impostors_drawn")?,
         trees: column("trees_drawn")?,
         visible: column("visible")?,
         stages: (0..stages[0].len())

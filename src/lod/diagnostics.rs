@@ -109,7 +109,7 @@ pub struct LodDiagnostics {
     pub held_trees: u32,
     /// Group impostors drawn ([`StrategyKind::Hierarchical`](super::StrategyKind::Hierarchical);
     /// 0 otherwise).
-    pub groups_drawn: u32,
+    pub impostors_drawn: u32,
     /// Visible trees drawn on their own rather than by a group impostor (with the
     /// hierarchical strategy; every visible tree otherwise).
     pub trees_drawn: u32,
@@ -123,8 +123,8 @@ pub struct LodDiagnostics {
     pub value_stage_ms: f32,
     /// Time of the Budget stage, ms.
     pub budget_stage_ms: f32,
-    /// Time of the Select stage, ms.
-    pub select_stage_ms: f32,
+    /// Time of the `DrawLists` stage (the chosen lists written into the components), ms.
+    pub draw_lists_stage_ms: f32,
     /// The target frame time is at or below the logic time this frame, so there was no
     /// rendering time to hand out and everything was drawn at its cheapest.
     pub target_below_logic: bool,
@@ -278,7 +278,7 @@ const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 28] = [
     (
         DiagnosticPath::const_new("sherwood/stage_time"),
         "ms",
-        |d| f64::from(d.value_stage_ms + d.budget_stage_ms + d.select_stage_ms),
+        |d| f64::from(d.value_stage_ms + d.budget_stage_ms + d.draw_lists_stage_ms),
     ),
     (DiagnosticPath::const_new("sherwood/overrun"), "ms", |d| {
         f64::from(d.overrun_ms)

@@ -526,7 +526,7 @@ pub fn trunk_floor(
 
 /// One visible leaf group of a tree: its index and depth.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VisibleGroup {
+pub struct VisibleLeafGroup {
     /// Index into [`TreeModel::leaf_groups`].
     pub group: u32,
     /// Depth of the group's centre.
@@ -597,7 +597,7 @@ pub fn leaves(
     view: &TreeView,
     costs: &PrimitiveCosts,
     method: LeafMethod,
-    groups: &[VisibleGroup],
+    groups: &[VisibleLeafGroup],
     time: f32,
     out: &mut TreeDrawList,
 ) -> Selected {
@@ -678,7 +678,7 @@ pub fn leaves(
 }
 
 /// The projected area of the visible groups' leaves together, pixels.
-fn leaves_area(model: &TreeModel, view: &TreeView, groups: &[VisibleGroup]) -> f32 {
+fn leaves_area(model: &TreeModel, view: &TreeView, groups: &[VisibleLeafGroup]) -> f32 {
     groups_with_leaves(model, view, groups)
         .map(|(_, area)| area)
         .sum()
@@ -688,7 +688,7 @@ fn leaves_area(model: &TreeModel, view: &TreeView, groups: &[VisibleGroup]) -> f
 fn groups_with_leaves<'a>(
     model: &'a TreeModel,
     view: &'a TreeView,
-    groups: &'a [VisibleGroup],
+    groups: &'a [VisibleLeafGroup],
 ) -> impl Iterator<Item = (u32, f32)> + 'a {
     groups.iter().filter_map(move |g| {
         let n = model.leaf_groups[g.group as usize].leaves.len() as u32;
@@ -720,7 +720,7 @@ fn group_leaf_costs<'a>(
     view: &'a TreeView,
     costs: &'a PrimitiveCosts,
     leaf_cost: &'a LeafTriangles,
-    groups: &'a [VisibleGroup],
+    groups: &'a [VisibleLeafGroup],
 ) -> impl Iterator<Item = (u32, f32)> + 'a {
     groups_with_leaves(model, view, groups)
         .map(move |(n, area)| (n, leaf_cost.per_leaf(costs, area / n as f32)))
@@ -733,7 +733,7 @@ pub fn leaves_floor(
     view: &TreeView,
     costs: &PrimitiveCosts,
     method: LeafMethod,
-    groups: &[VisibleGroup],
+    groups: &[VisibleLeafGroup],
 ) -> f32 {
     let leaf_cost = LeafTriangles::of(model, costs, leaves_area(model, view, groups));
     let each = || group_leaf_costs(model, view, costs, &leaf_cost, groups);

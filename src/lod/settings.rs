@@ -29,16 +29,16 @@ pub enum StrategyKind {
     /// pass on; nothing visible is dropped.
     #[default]
     RobinHood,
-    /// Funkhouser–Séquin's greedy over each object's ladder; may drop objects.
+    /// Funkhouser–Séquin's greedy over each object's rungs; may drop objects.
     FunkhouserSequin,
     /// Funkhouser–Séquin's incremental variant, starting from last frame's choice.
     FunkhouserIncremental,
     /// The triangle-budget greedy.
     TriangleBudget,
     /// Mason & Blake's hierarchical optimisation over the culling boxes: a box in view
-    /// may be drawn as one group impostor of all its trees ([`GroupSettings`]) instead of
+    /// may be drawn as one group impostor of all its trees ([`GroupImpostorSettings`]) instead of
     /// its trees, so a view too large for every tree's cheapest representation stays
-    /// complete and on time. Each tree part sees a ladder as with
+    /// complete and on time. Each tree part is priced by its rungs as with
     /// [`FunkhouserSequin`](Self::FunkhouserSequin); the choice starts from last frame's.
     Hierarchical,
 }
@@ -105,8 +105,8 @@ pub struct FrameBudget {
     pub mode: LodMode,
     /// Who hands out the time in the time-critical modes. Default:
     /// [`StrategyKind::RobinHood`]. The
-    /// ladder strategies see each object as a ladder of its representations at
-    /// [`LADDER_FRACTIONS`] of its full cost, with benefit `value · √(cost / full cost)`.
+    /// other strategies see each object as rungs of its representations at
+    /// [`RUNG_FRACTIONS`] of its full cost, with benefit `value · √(cost / full cost)`.
     pub strategy: StrategyKind,
     /// Value function. Default: [`ValueFunction::P11`].
     pub value: ValueFunction,
@@ -198,13 +198,13 @@ pub struct BenefitReport {
 
 /// The group impostors of the [`StrategyKind::Hierarchical`] strategy: one per box of the
 /// culling hierarchy holding enough trees, built from its trees
-/// ([`group_model`](crate::tree::group_model)) the first time the strategy is chosen and
+/// ([`group_impostor_model`](crate::tree::group_impostor_model)) the first time the strategy is chosen and
 /// whenever the forest's layout changes (not when trees only move or sway: a group keeps
 /// its trees' places at build time, and does not sway). Changing it rebuilds them.
 #[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Reflect)]
 #[reflect(Resource)]
 #[serde(default)]
-pub struct GroupSettings {
+pub struct GroupImpostorSettings {
     /// A box gets a group impostor when it holds at least this many trees. Default: `16`.
     pub min_trees: u32,
     /// Leaves a group keeps (one triangle each, enlarged to its trees' leaf area).
@@ -220,7 +220,7 @@ pub struct GroupSettings {
     pub max_vertices: u32,
 }
 
-impl Default for GroupSettings {
+impl Default for GroupImpostorSettings {
     fn default() -> Self {
         Self {
             min_trees: 16,
@@ -231,19 +231,21 @@ impl Default for GroupSettings {
     }
 }
 
-impl GroupSettings {
+impl GroupImpostorSettings {
     /// The group-model options these settings ask for.
-    pub fn model_options(&self) -> crate::tree::GroupModelOptions {
-        crate::tree::GroupModelOptions {
+    pub fn model_options(&self) -> crate::tree::GroupImpostorOptions {
+        crate::tree::GroupImpostorOptions {
             leaves: self.leaves,
             trunks: self.trunks,
         }
     }
 }
 
-/// The fractions of an object's full-detail time at which its ladder's rungs are searched
-/// for the ladder strategies (best → cheapest; 0 gives the cheapest representation).
-pub const LADDER_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
+/// The fractions of an object's full-detail time at which its rungs are searched for the
+/// strategies that price representations as rungs (Funkhouser–Séquin, its incremental
+/// variant, the triangle budget, the hierarchical strategy; best → cheapest, 0 gives the
+/// cheapest representation).
+pub const RUNG_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
 
 /// How long, in seconds, the target must stay at or below the logic time before a
 /// warning is logged: longer than the start-up's slow frames take to leave the learned

@@ -6,12 +6,13 @@ use std::time::Instant;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use super::select::{self, PrimitiveCosts, TreeView, VisibleGroup};
-use super::{FrameBudget, GroupImpostors, LadderObjects, LodFrame, StrategyKind};
+use super::select::{self, PrimitiveCosts, TreeView, VisibleLeafGroup};
+use super::strategy::Strategies;
+use super::{FrameBudget, GroupImpostors, LadderObjects, LodMode, StrategyKind};
 use crate::budget::{ValueInputs, ValueModel};
 use crate::cost::CostModel;
 use crate::culling::{CullView, ForestCulling, FrustumPlanes, InstanceVisibility};
-use crate::draw::{ModelSlot, TreeDrawList};
+use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::tree::{BoundingSphere, TreeModel, TreeModelsVersion};
 use crate::view::LodView;
@@ -23,14 +24,14 @@ pub(super) enum Part {
     Trunk,
     /// A tree's leaves.
     Leaves,
-    /// A mesh entity with a LOD ladder.
-    Ladder,
+    /// A mesh entity with a LOD ladder ([`LodLadder`](crate::ladder::LodLadder)).
+    Mesh,
 }
 
-/// One visible object: a part of a tree, or a ladder entity.
+/// One visible object: a part of a tree, or a mesh-ladder entity.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Object {
-    /// Index into [`LodFrame::trees`], or for [`Part::Ladder`] into
+    /// Index into [`VisibleObjects::trees`], or for [`Part::Mesh`] into
     /// [`LadderObjects::entries`](super::LadderObjects).
     pub(super) index: u32,
     pub(super) part: Part,
@@ -41,11 +42,10 @@ pub(super) struct VisibleTree {
     pub(super) entity: Entity,
     /// Its index in the instance table.
     pub(super) instance: u32,
-    /// Index into [`LodFrame::infos`].
+    /// Index into [`VisibleObjects::infos`].
     pub(super) model: u32,
     pub(super) view: TreeView,
-    pub(super) trunk_visible: bool,
-    /// The visible leaf groups in [`LodFrame::groups`]; empty when `leaf_depth` is set.
+    /// The visible leaf groups in [`VisibleObjects::leaf_groups`]; empty when `leaf_depth` is set.
     pub(super) groups: core::ops::Range<u32>,
     /// Every leaf group at this depth: the tree is entirely in view and far compared with
     /// its size (see [`UNIFORM_DEPTH_RADII`]).
@@ -85,6 +85,106 @@ pub(super) struct ModelInfo {
     pub(super) slot: ModelSlot,
 }
 
+/// The Value stage's output: this frame's visible trees and objects, simple → complex,
+/// with their values; and what it derives from the forest and the models between frames.
+#[derive(Resource, Default)]
+pub(super) struct VisibleObjects {
+    /// The view's pixel count: the most one primitive can cover.
+    pub(super) viewport_pixels: f32,
+    /// The camera the objects were valued from.
+    pub(super) view: Option<LodView>,
+    pub(super) trees: Vec<VisibleTree>,
+    pub(super) leaf_groups: Vec<VisibleLeafGroup>,
+    /// The objects simple → complex, and per object its value and complexity.
+    pub(super) objects: Vec<Object>,
+    pub(super) values: Vec<f32>,
+    pub(super) complexities: Vec<f32>,
+    /// The far trees held this frame (instances, [`FrameBudget::far_refresh`]), and what
+    /// they cost and draw together.
+    pub(super) held: Vec<u32>,
+    pub(super) held_parts: select::Selected,
+    pub(super) held_counts: PrimitiveCounts,
+    /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
+    /// when models change.
+    pub(super) infos: Vec<ModelInfo>,
+    /// The stage's own time this frame, milliseconds.
+    pub(super) value_ms: f32,
+    /// Per instance of [`ForestInstances`], its model and placement: derived when the
+    /// forest or the models change, not per frame.
+    placed: Vec<PlacedTree>,
+    /// The models' version `infos` was derived at, and the layout, transforms and models'
+    /// version `placed` was.
+    ranked_version: Option<u64>,
+    placed_key: Option<(u64, u64, u64)>,
+    /// `(rank, complexity, object, value)` of the visible objects, before ordering.
+    keyed: Vec<(u32, f32, Object, f32)>,
+    /// Per rank, where its objects start in `objects` (a counting sort's scratch).
+    rank_starts: Vec<u32>,
+    /// `(complexity, object, value)` of the mesh-ladder entities in view, before merging.
+    ladder_keyed: Vec<(f32, Object, f32)>,
+    /// Value stages run (which far trees take their turn).
+    value_frames: u64,
+    /// Whether the strategy asked for only some instances, and which, per instance.
+    only_needed: bool,
+    needed: Vec<bool>,
+}
+
+impl VisibleObjects {
+    /// The instances of the table the Value stage last placed.
+    pub(super) fn instances(&self) -> usize {
+        self.placed.len()
+    }
+}
+
+/// What [`FarDecisions`] is valid for.
+#[derive(Clone, Copy, PartialEq)]
+struct DecidedKey {
+    layout: u64,
+    mode: LodMode,
+    widths: crate::tree::PixelRange,
+    sizes: crate::tree::PixelRange,
+    refresh: u32,
+}
+
+/// Per instance, the last decision of a far tree (whole tree at one depth): what it costs
+/// and draws (`None`: none to keep), for [`FrameBudget::far_refresh`]. Written by the
+/// Budget stage, read by the next frame's Value stage: the one place the Value stage reads
+/// a later stage's result.
+#[derive(Resource, Default)]
+pub(super) struct FarDecisions {
+    pub(super) decided: Vec<Option<(select::Selected, PrimitiveCounts)>>,
+    key: Option<DecidedKey>,
+}
+
+impl FarDecisions {
+    /// Whether far trees are being held this frame (the Budget stage then keeps their
+    /// decisions).
+    pub(super) fn holding(&self) -> bool {
+        self.key.is_some()
+    }
+
+    /// Keeps the decisions valid for `key` (re-indexed when trees were only planted or
+    /// felled since), or forgets them.
+    fn follow(&mut self, key: Option<DecidedKey>, table: &ForestInstances) {
+        let same_settings = |kept: &DecidedKey, now: &DecidedKey| {
+            DecidedKey {
+                layout: now.layout,
+                ..*kept
+            } == *now
+        };
+        let edits = match (self.key, key) {
+            (Some(kept), Some(now)) if same_settings(&kept, &now) => table.edits_since(kept.layout),
+            _ => None,
+        };
+        match edits {
+            Some(edits) if key.is_some() => edits.apply(&mut self.decided, |_| None),
+            _ if key.is_some() && self.key == key => {}
+            _ => self.decided.clear(),
+        }
+        self.key = key;
+    }
+}
+
 pub(super) fn give_draw_lists(
     mut commands: Commands,
     // A tree with `FixedDrawList` and no list is drawn in full, as its docs promise.
@@ -106,7 +206,7 @@ pub(super) fn give_draw_lists(
 /// (the culling hierarchy's transforms) or the models.
 #[derive(Clone, Copy)]
 pub(super) struct PlacedTree {
-    /// Index into [`LodFrame::infos`], or [`NO_MODEL`] when its model is not loaded.
+    /// Index into [`VisibleObjects::infos`], or [`NO_MODEL`] when its model is not loaded.
     pub(super) model: u32,
     /// Uniform scale.
     pub(super) scale: f32,
@@ -195,7 +295,9 @@ fn model_infos(models: &Assets<TreeModel>, costs: &PrimitiveCosts) -> Vec<ModelI
 }
 
 pub(super) fn value_objects(
-    mut frame: ResMut<LodFrame>,
+    mut visible: ResMut<VisibleObjects>,
+    mut far: ResMut<FarDecisions>,
+    mut strategies: ResMut<Strategies>,
     budget: Res<FrameBudget>,
     cost_model: Res<CostModel>,
     culling: Option<Res<ForestCulling>>,
@@ -223,34 +325,31 @@ pub(super) fn value_objects(
         leaf_importance,
         ..budget.clone()
     };
-    let frame = &mut *frame;
-    frame.trees.clear();
-    frame.groups.clear();
-    frame.objects.clear();
-    frame.values.clear();
-    frame.complexities.clear();
-    frame.view = None;
+    let visible = &mut *visible;
+    visible.trees.clear();
+    visible.leaf_groups.clear();
+    visible.objects.clear();
+    visible.values.clear();
+    visible.complexities.clear();
+    visible.view = None;
     let Some((view, cull_view)) = views.iter().next() else {
         return;
     };
-    frame.viewport_pixels = view.viewport_pixels;
-    frame.view = Some(*view);
+    visible.viewport_pixels = view.viewport_pixels;
+    visible.view = Some(*view);
     if let Some(culling) = culling {
-        // The hierarchical strategy values only the trees its cut can reach this frame.
-        let boxes = culling.hierarchy.as_ref();
-        frame.only_needed = budget.strategy == StrategyKind::Hierarchical && boxes.is_some();
-        if let (true, Some(boxes)) = (frame.only_needed, boxes) {
-            let has_group = |node: usize| impostors.has_group(Some(&culling), node);
-            frame.hierarchical.needed_instances(
-                boxes,
-                culling.hierarchy_version(),
-                culling.result.visibility.len(),
-                &has_group,
-                &mut frame.needed,
+        // A strategy may value only the trees it can reach this frame (the hierarchical
+        // one: those its last cut can open to); the fixed modes draw every visible tree.
+        let time_critical = matches!(budget.mode, LodMode::Tc | LodMode::Tclod);
+        visible.only_needed = time_critical
+            && strategies.get(budget.strategy).needed_instances(
+                &culling,
+                &impostors,
+                &mut visible.needed,
             );
-        }
         value_trees(
-            frame,
+            visible,
+            &mut far,
             budget,
             &cost_model,
             &culling,
@@ -261,14 +360,14 @@ pub(super) fn value_objects(
         );
     }
     value_ladders(
-        frame,
+        visible,
         budget,
         &cost_model,
         view,
         cull_view.map(|c| &c.0),
         &mut ladders,
     );
-    frame.value_ms = start.elapsed().as_secs_f32() * 1000.0;
+    visible.value_ms = start.elapsed().as_secs_f32() * 1000.0;
 }
 
 /// The configured value function of `area` at `at` seen from `view`, times `importance`.
@@ -283,7 +382,8 @@ fn value_seen(budget: &FrameBudget, view: &LodView, area: f32, at: Vec3, importa
 
 /// The visible trees' objects, simple → complex.
 fn value_trees(
-    frame: &mut LodFrame,
+    visible: &mut VisibleObjects,
+    far: &mut FarDecisions,
     budget: &FrameBudget,
     cost_model: &CostModel,
     culling: &ForestCulling,
@@ -292,10 +392,10 @@ fn value_trees(
     models: &Assets<TreeModel>,
     version: &TreeModelsVersion,
 ) {
-    if frame.ranked_version != Some(version.0) {
+    if visible.ranked_version != Some(version.0) {
         let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
-        frame.infos = model_infos(models, &costs);
-        frame.ranked_version = Some(version.0);
+        visible.infos = model_infos(models, &costs);
+        visible.ranked_version = Some(version.0);
     }
     // Culling's answer is indexed by the table it was built for (the same, once models
     // have loaded: both are kept in the same frame).
@@ -307,68 +407,76 @@ fn value_trees(
         table.transforms_version(),
         version.0,
     );
-    if frame.placed_key != Some(placed_key) {
-        frame.placed = place_trees(table, &frame.infos);
-        frame.placed_key = Some(placed_key);
+    if visible.placed_key != Some(placed_key) {
+        visible.placed = place_trees(table, &visible.infos);
+        visible.placed_key = Some(placed_key);
     }
-    let projection = view.projection();
-    let value_of =
-        |area: f32, at: Vec3, importance: f32| value_seen(budget, view, area, at, importance);
-    let area_exponent_one = budget.value.area_exponent() == 1.0;
     // Far trees decided in turn (`FrameBudget::far_refresh`).
-    frame.value_frames += 1;
-    frame.held.clear();
-    frame.held_parts = select::Selected::default();
-    frame.held_counts = crate::draw::PrimitiveCounts::default();
+    visible.value_frames += 1;
+    visible.held.clear();
+    visible.held_parts = select::Selected::default();
+    visible.held_counts = PrimitiveCounts::default();
     let refresh = u64::from(budget.far_refresh.max(1));
     let holding = refresh > 1
         && budget.strategy == StrategyKind::RobinHood
-        && matches!(budget.mode, super::LodMode::Tc | super::LodMode::Tclod);
-    let decided_key = (
-        table.layout_version(),
-        budget.mode,
-        budget.line_widths,
-        budget.point_sizes,
-        budget.far_refresh,
+        && matches!(budget.mode, LodMode::Tc | LodMode::Tclod);
+    far.follow(
+        holding.then_some(DecidedKey {
+            layout: table.layout_version(),
+            mode: budget.mode,
+            widths: budget.line_widths,
+            sizes: budget.point_sizes,
+            refresh: budget.far_refresh,
+        }),
+        table,
     );
-    // Trees planted or felled keep the others' decisions where they now stand.
-    let edits = frame
-        .decided_key
-        .filter(|kept| {
-            (kept.1, kept.2, kept.3, kept.4)
-                == (decided_key.1, decided_key.2, decided_key.3, decided_key.4)
-        })
-        .and_then(|kept| table.edits_since(kept.0));
-    match edits {
-        Some(edits) if holding => edits.apply(&mut frame.decided, |_| None),
-        _ if holding && frame.decided_key == Some(decided_key) => {}
-        _ => frame.decided.clear(),
-    }
-    frame.decided_key = holding.then_some(decided_key);
-    let turn = frame.value_frames;
-    let LodFrame {
-        infos,
-        placed,
-        trees,
-        groups,
-        keyed,
-        only_needed,
-        needed,
-        decided,
-        held,
-        held_parts,
-        held_counts,
-        ..
-    } = frame;
-    keyed.clear();
+    let valuer = TreeValuer {
+        budget,
+        view,
+        culling,
+        table,
+        models,
+        area_exponent_one: budget.value.area_exponent() == 1.0,
+        refresh,
+        turn: visible.value_frames,
+        decided: &far.decided,
+    };
+    visible.keyed.clear();
     for (i, visibility) in culling.result.visibility.iter().enumerate() {
-        if *only_needed && !needed.get(i).copied().unwrap_or(true) {
+        if visible.only_needed && !visible.needed.get(i).copied().unwrap_or(true) {
             continue;
         }
+        valuer.value(i, *visibility, visible);
+    }
+    order_simple_to_complex(visible);
+}
+
+/// What valuing one instance reads.
+struct TreeValuer<'a> {
+    budget: &'a FrameBudget,
+    view: &'a LodView,
+    culling: &'a ForestCulling,
+    table: &'a ForestInstances,
+    models: &'a Assets<TreeModel>,
+    /// The value function's area exponent is 1 (see [`ModelInfo::group_leaves`]).
+    area_exponent_one: bool,
+    /// A far tree is decided every `refresh` frames, on its turn.
+    refresh: u64,
+    turn: u64,
+    decided: &'a [Option<(select::Selected, PrimitiveCounts)>],
+}
+
+impl TreeValuer<'_> {
+    fn value_of(&self, area: f32, at: Vec3, importance: f32) -> f32 {
+        value_seen(self.budget, self.view, area, at, importance)
+    }
+
+    /// Instance `i` seen as `visibility`: held, or its tree and objects added.
+    fn value(&self, i: usize, visibility: InstanceVisibility, out: &mut VisibleObjects) {
         let trunk_visible = match visibility {
-            InstanceVisibility::Invisible => continue,
+            InstanceVisibility::Invisible => return,
             InstanceVisibility::Full => true,
-            InstanceVisibility::Partial { trunk, .. } => *trunk,
+            InstanceVisibility::Partial { trunk, .. } => trunk,
         };
         let (
             Some(&PlacedTree {
@@ -378,36 +486,37 @@ fn value_trees(
                 trunk_center,
             }),
             Some(&entity),
-        ) = (placed.get(i), table.entities.get(i))
+        ) = (out.placed.get(i), self.table.entities.get(i))
         else {
-            continue;
+            return;
         };
-        let Some(info) = infos.get(model_index as usize) else {
-            continue;
+        let Some(info) = out.infos.get(model_index as usize) else {
+            return;
         };
-        let tree = trees.len() as u32;
-        let first_group = groups.len() as u32;
-        let leaf_area = info.leaf_area * scale * scale;
+        let (budget, view) = (self.budget, self.view);
+        let tree = out.trees.len() as u32;
         let center_depth = view.depth(center);
         let whole = matches!(visibility, InstanceVisibility::Full)
             && info.has_leaves
             && center_depth >= UNIFORM_DEPTH_RADII * info.radius * scale;
         if whole
-            && !(i as u64 + turn).is_multiple_of(refresh)
-            && let Some((parts, counts)) = decided.get(i).copied().flatten()
+            && !(i as u64 + self.turn).is_multiple_of(self.refresh)
+            && let Some((parts, counts)) = self.decided.get(i).copied().flatten()
         {
-            held.push(i as u32);
-            *held_parts = select::Selected::both(*held_parts, parts);
-            *held_counts += counts;
-            continue;
+            out.held.push(i as u32);
+            out.held_parts = select::Selected::both(out.held_parts, parts);
+            out.held_counts += counts;
+            return;
         }
+        let leaf_area = info.leaf_area * scale * scale;
+        let first_group = out.leaf_groups.len() as u32;
         let mut leaves_value = 0.0;
         let mut leaf_depth = None;
         if whole {
             // Every group at the centre's depth and distance: one value per leaf, times
             // the groups' leaf counts to the area's power (see `ModelInfo`).
-            let per_leaf = value_of(leaf_area, center, budget.leaf_importance);
-            let counts = if area_exponent_one {
+            let per_leaf = self.value_of(leaf_area, center, budget.leaf_importance);
+            let counts = if self.area_exponent_one {
                 info.group_leaves
             } else {
                 info.group_leaves_sqrt
@@ -415,95 +524,86 @@ fn value_trees(
             leaves_value = crate::budget::finite_value(per_leaf * counts);
             leaf_depth = Some(center_depth.max(crate::budget::MIN_DEPTH));
         } else if let (Some(model), Some(transform)) =
-            (models.get(info.id), table.transforms.get(i))
+            (self.models.get(info.id), self.table.transforms.get(i))
         {
             for (g, group) in model.leaf_groups.iter().enumerate() {
-                if !culling.result.group_visible(i, g) {
+                if !self.culling.result.group_visible(i, g) {
                     continue;
                 }
                 let center = transform.transform_point3(group.bounds.center);
                 let n = group.leaves.len() as f32;
-                leaves_value += value_of(n * leaf_area, center, budget.leaf_importance);
-                groups.push(VisibleGroup {
+                leaves_value += self.value_of(n * leaf_area, center, budget.leaf_importance);
+                out.leaf_groups.push(VisibleLeafGroup {
                     group: g as u32,
                     depth: view.depth(center).max(crate::budget::MIN_DEPTH),
                 });
             }
         }
-        let group_range = first_group..groups.len() as u32;
+        let groups = first_group..out.leaf_groups.len() as u32;
+        let object = |part| Object { index: tree, part };
         if trunk_visible && info.has_trunk {
             let area = info.trunk_area * scale * scale;
-            let (r, c) = info.trunk_rank;
-            keyed.push((
-                r,
-                c,
-                Object {
-                    index: tree,
-                    part: Part::Trunk,
-                },
-                value_of(area, trunk_center, budget.trunk_importance),
-            ));
+            let (rank, complexity) = info.trunk_rank;
+            let value = self.value_of(area, trunk_center, budget.trunk_importance);
+            out.keyed
+                .push((rank, complexity, object(Part::Trunk), value));
         }
-        if !group_range.is_empty() || leaf_depth.is_some() {
-            let (r, c) = info.leaves_rank;
-            keyed.push((
-                r,
-                c,
-                Object {
-                    index: tree,
-                    part: Part::Leaves,
-                },
-                leaves_value,
-            ));
+        if !groups.is_empty() || leaf_depth.is_some() {
+            let (rank, complexity) = info.leaves_rank;
+            out.keyed
+                .push((rank, complexity, object(Part::Leaves), leaves_value));
         }
-        trees.push(VisibleTree {
+        out.trees.push(VisibleTree {
             entity,
             instance: i as u32,
             model: model_index,
             view: TreeView {
                 scale,
                 trunk_depth: view.depth(trunk_center).max(crate::budget::MIN_DEPTH),
-                projection,
+                projection: view.projection(),
             },
-            trunk_visible,
-            groups: group_range,
+            groups,
             leaf_depth,
         });
     }
-    // Simple → complex: ranks are few (two per model), so a counting sort by rank is O(n)
-    // and stable, and the complexities arrive sorted (Robin Hood then runs in O(n)).
-    let starts = &mut frame.rank_starts;
+}
+
+/// The keyed objects into `objects`, `complexities` and `values`, simple → complex: ranks
+/// are few (two per model), so a counting sort by rank is O(n) and stable, and the
+/// complexities arrive sorted (Robin Hood then runs in O(n)).
+fn order_simple_to_complex(visible: &mut VisibleObjects) {
+    let starts = &mut visible.rank_starts;
     starts.clear();
-    starts.resize(2 * frame.infos.len() + 1, 0);
+    starts.resize(2 * visible.infos.len() + 1, 0);
     // (`model_infos` ranks the 2 · models object types 0..2 · models.)
-    for &(rank, ..) in &frame.keyed {
+    for &(rank, ..) in &visible.keyed {
         starts[rank as usize + 1] += 1;
     }
     for r in 1..starts.len() {
         starts[r] += starts[r - 1];
     }
-    let n = frame.keyed.len();
+    let n = visible.keyed.len();
     let placeholder = Object {
         index: 0,
         part: Part::Trunk,
     };
-    frame.objects.resize(n, placeholder);
-    frame.complexities.resize(n, 0.0);
-    frame.values.resize(n, 0.0);
-    for &(rank, complexity, object, value) in &frame.keyed {
+    visible.objects.resize(n, placeholder);
+    visible.complexities.resize(n, 0.0);
+    visible.values.resize(n, 0.0);
+    for &(rank, complexity, object, value) in &visible.keyed {
         let at = &mut starts[rank as usize];
         let i = *at as usize;
         *at += 1;
-        frame.objects[i] = object;
-        frame.complexities[i] = complexity;
-        frame.values[i] = value;
+        visible.objects[i] = object;
+        visible.complexities[i] = complexity;
+        visible.values[i] = value;
     }
 }
 
-/// The ladder entities in view, valued like the trees and merged into the simple →
+/// The mesh-ladder entities in view, valued like the trees and merged into the simple →
 /// complex order (their complexity: their best level's calibrated cost).
 fn value_ladders(
-    frame: &mut LodFrame,
+    frame: &mut VisibleObjects,
     budget: &FrameBudget,
     cost_model: &CostModel,
     view: &LodView,
@@ -532,7 +632,7 @@ fn value_ladders(
         let value = value_seen(budget, view, entry.area, entry.center, entry.importance);
         let object = Object {
             index: e as u32,
-            part: Part::Ladder,
+            part: Part::Mesh,
         };
         keyed.push((costs.mesh(best), object, value));
     }

@@ -297,29 +297,10 @@ fn run_calibration(
         if !loaded || adapter.is_none() || lod_view.is_none() {
             return;
         }
-        let Some(model) = table
-            .entities
-            .iter()
-            .filter_map(|&e| instances.get(e).ok())
-            .max_by_key(|i| {
-                models
-                    .get(&i.model)
-                    .map_or(0, |m| m.trunk_triangle_count() + m.leaf_triangle_count())
-            })
-            .map(|i| i.model.clone())
-        else {
+        let Some(model) = largest_model(&table, &instances, &models) else {
             return;
         };
-        let positions = culling
-            .instances
-            .iter()
-            .map(|i| Vec3::from(i.transform.translation));
-        let (min, max) = positions.fold(
-            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(p), hi.max(p)),
-        );
-        state.forest_min = min;
-        state.forest_max = max;
+        (state.forest_min, state.forest_max) = forest_bounds(&culling);
         state.model = Some(model);
         state.plan = plan(&settings);
         state.saved = Some(Saved {
@@ -350,60 +331,16 @@ fn run_calibration(
         }
         progress.label = step.label();
         state.step_started = Some(Instant::now());
-        match step {
-            Step::WarmUp | Step::Empty | Step::Render { .. } => {
-                wind.enabled = false;
-                // Straight up from the forest, high enough that the ground is out of
-                // view, looking at the horizon: nothing but the benchmark is drawn.
-                let above = Vec3::new(
-                    state.forest_min.x,
-                    state.forest_max.y + 5_000.0,
-                    state.forest_min.z,
-                );
-                *camera_transform = Transform::from_translation(above).looking_to(Vec3::X, Vec3::Y);
-                if step == Step::WarmUp {
-                    let list = warm_up_list(model);
-                    for offset in bench_layout(model, Family::Triangles, 1, 0.3, focal, viewport) {
-                        let at = *camera_transform * offset;
-                        state.bench.push(
-                            commands
-                                .spawn(bench_tree(&model_handle, list.clone(), at))
-                                .id(),
-                        );
-                    }
-                }
-                if let Step::Render {
-                    family,
-                    size,
-                    primitives,
-                    tree_fraction,
-                } = step
-                {
-                    let layout =
-                        bench_layout(model, family, primitives, tree_fraction, focal, viewport);
-                    let list = bench_list(model, family, size);
-                    for offset in layout {
-                        let at = *camera_transform * offset;
-                        state.bench.push(
-                            commands
-                                .spawn(bench_tree(&model_handle, list.clone(), at))
-                                .id(),
-                        );
-                    }
-                }
-            }
-            Step::Logic { target_ms, turn } => {
-                if let Some(saved) = &state.saved {
-                    wind.enabled = saved.wind;
-                    *budget = FrameBudget {
-                        target_ms,
-                        mode: LodMode::Tclod,
-                        ..saved.budget.clone()
-                    };
-                }
-                *camera_transform = logic_pose(state.forest_min, state.forest_max, turn);
-            }
-        }
+        begin_step(
+            step,
+            state,
+            &mut commands,
+            &model_handle,
+            model,
+            &mut camera_transform,
+            (&mut budget, &mut wind),
+            (focal, viewport),
+        );
     } else if state.frame_in_step > settings.settle_frames {
         // (Samples arrive a frame or two late: the settling frames cover that.)
         let m = &mut state.measured;
@@ -429,6 +366,126 @@ fn run_calibration(
         return;
     }
 
+    record_step(step, state, model, focal, viewport);
+    state.step += 1;
+    state.frame_in_step = 0;
+    progress.done = state.step as u32;
+    if state.step < state.plan.len() {
+        return;
+    }
+
+    finish(
+        state,
+        &mut commands,
+        &settings,
+        &calibration_dir,
+        adapter.map(|a| a.clone()).unwrap_or_default(),
+        &mut camera_transform,
+        (&mut budget, &mut wind),
+        (&mut cost_model, &mut cost_settings),
+        &mut progress,
+    );
+}
+
+/// The model of the forest's trees with the most triangles: the benchmark's tree.
+fn largest_model(
+    table: &ForestInstances,
+    instances: &Query<&TreeInstance>,
+    models: &Assets<TreeModel>,
+) -> Option<Handle<TreeModel>> {
+    table
+        .entities
+        .iter()
+        .filter_map(|&e| instances.get(e).ok())
+        .max_by_key(|i| {
+            models
+                .get(&i.model)
+                .map_or(0, |m| m.trunk_triangle_count() + m.leaf_triangle_count())
+        })
+        .map(|i| i.model.clone())
+}
+
+/// The bounds of the forest's trees' positions.
+fn forest_bounds(culling: &ForestCulling) -> (Vec3, Vec3) {
+    culling
+        .instances
+        .iter()
+        .map(|i| Vec3::from(i.transform.translation))
+        .fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(p), hi.max(p)),
+        )
+}
+
+/// Sets the scene up for `step`: the camera, the benchmark trees, the wind and budget.
+fn begin_step(
+    step: Step,
+    state: &mut RunState,
+    commands: &mut Commands,
+    model_handle: &Handle<TreeModel>,
+    model: &TreeModel,
+    camera_transform: &mut Transform,
+    (budget, wind): (&mut FrameBudget, &mut WindSettings),
+    (focal, viewport): (f32, UVec2),
+) {
+    match step {
+        Step::WarmUp | Step::Empty | Step::Render { .. } => {
+            wind.enabled = false;
+            // Straight up from the forest, high enough that the ground is out of
+            // view, looking at the horizon: nothing but the benchmark is drawn.
+            let above = Vec3::new(
+                state.forest_min.x,
+                state.forest_max.y + 5_000.0,
+                state.forest_min.z,
+            );
+            *camera_transform = Transform::from_translation(above).looking_to(Vec3::X, Vec3::Y);
+            if step == Step::WarmUp {
+                let list = warm_up_list(model);
+                for offset in bench_layout(model, Family::Triangles, 1, 0.3, focal, viewport) {
+                    let at = *camera_transform * offset;
+                    state.bench.push(
+                        commands
+                            .spawn(bench_tree(model_handle, list.clone(), at))
+                            .id(),
+                    );
+                }
+            }
+            if let Step::Render {
+                family,
+                size,
+                primitives,
+                tree_fraction,
+            } = step
+            {
+                let layout =
+                    bench_layout(model, family, primitives, tree_fraction, focal, viewport);
+                let list = bench_list(model, family, size);
+                for offset in layout {
+                    let at = *camera_transform * offset;
+                    state.bench.push(
+                        commands
+                            .spawn(bench_tree(model_handle, list.clone(), at))
+                            .id(),
+                    );
+                }
+            }
+        }
+        Step::Logic { target_ms, turn } => {
+            if let Some(saved) = &state.saved {
+                wind.enabled = saved.wind;
+                *budget = FrameBudget {
+                    target_ms,
+                    mode: LodMode::Tclod,
+                    ..saved.budget.clone()
+                };
+            }
+            *camera_transform = logic_pose(state.forest_min, state.forest_max, turn);
+        }
+    }
+}
+
+/// Keeps what the frames of the measured `step` showed.
+fn record_step(step: Step, state: &mut RunState, model: &TreeModel, focal: f32, viewport: UVec2) {
     // The step is measured.
     let m = std::mem::take(&mut state.measured);
     let render_ms = median(m.render_ms.iter().copied());
@@ -466,13 +523,20 @@ fn run_calibration(
             }
         }
     }
-    state.step += 1;
-    state.frame_in_step = 0;
-    progress.done = state.step as u32;
-    if state.step < state.plan.len() {
-        return;
-    }
+}
 
+/// Every step measured: the calibration fitted, written and installed, the app restored.
+fn finish(
+    state: &mut RunState,
+    commands: &mut Commands,
+    settings: &CalibrationSettings,
+    calibration_dir: &CalibrationDir,
+    adapter: AdapterIdentity,
+    camera_transform: &mut Transform,
+    (budget, wind): (&mut FrameBudget, &mut WindSettings),
+    (cost_model, cost_settings): (&mut CostModel, &mut CostSettings),
+    progress: &mut CalibrationProgress,
+) {
     // Every step measured: fit, write, install, restore.
     state.finished = true;
     for e in state.bench.drain(..) {
@@ -484,7 +548,6 @@ fn run_calibration(
         wind.enabled = saved.wind;
         *cost_settings = saved.cost;
     }
-    let adapter = adapter.map(|a| a.clone()).unwrap_or_default();
     let fitted = fit(
         &state.render_samples,
         &state.logic_samples,

@@ -175,11 +175,11 @@ fn hud_text(
             );
         }
     }
-    if let Some(d) = lod.filter(|d| d.groups_drawn > 0) {
+    if let Some(d) = lod.filter(|d| d.impostors_drawn > 0) {
         let _ = writeln!(
             s,
             "cut       {} groups, {} trees on their own",
-            d.groups_drawn, d.trees_drawn
+            d.impostors_drawn, d.trees_drawn
         );
     }
     if let Some(gpu) = stats.gpu_time_ms {

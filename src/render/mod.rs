@@ -792,7 +792,7 @@ fn create_bind_groups(
     if let Some((name, size)) = too_large {
         if !*warned {
             error!(
-                "bevy_sherwood: the forest's {name} take {size} bytes, more than this device binds at once ({limit}): the forest is not drawn. Fewer or smaller tree models (for group impostors: a lower GroupSettings::max_vertices) bring it back."
+                "bevy_sherwood: the forest's {name} take {size} bytes, more than this device binds at once ({limit}): the forest is not drawn. Fewer or smaller tree models (for group impostors: a lower GroupImpostorSettings::max_vertices) bring it back."
             );
             *warned = true;
         }

@@ -494,32 +494,7 @@ fn attach_leaves(
     if triangles.is_empty() {
         return;
     }
-    // Union-find over vertices: each connected patch is one leaf.
-    let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            parent[v as usize] = parent[parent[v as usize] as usize];
-            v = parent[v as usize];
-        }
-        v
-    }
-    for t in &triangles {
-        let a = find(&mut parent, t[0]);
-        for &v in &t[1..] {
-            let b = find(&mut parent, v);
-            parent[b as usize] = a;
-        }
-    }
-    let mut leaf_of_root: HashMap<u32, usize> = HashMap::new();
-    let mut leaf_triangles: Vec<Vec<[u32; 3]>> = Vec::new();
-    for t in &triangles {
-        let root = find(&mut parent, t[0]);
-        let leaf = *leaf_of_root.entry(root).or_insert_with(|| {
-            leaf_triangles.push(Vec::new());
-            leaf_triangles.len() - 1
-        });
-        leaf_triangles[leaf].push(*t);
-    }
+    let leaf_triangles = connected_patches(&triangles, n);
 
     let positions = &mesh.positions;
     let terminals: Vec<u32> = (0..model.rings.len() as u32)
@@ -531,29 +506,11 @@ fn attach_leaves(
     let mut built: Vec<(u32, Vec3, Vec3, &Vec<[u32; 3]>)> =
         Vec::with_capacity(leaf_triangles.len());
     for tris in &leaf_triangles {
-        let mut area = 0.0;
-        let mut center = Vec3::ZERO;
-        let mut normal = Vec3::ZERO;
-        let mut vertex_normal = Vec3::ZERO;
-        for t in tris {
-            let p = t.map(|v| positions[v as usize]);
-            let cross = (p[1] - p[0]).cross(p[2] - p[0]);
-            let a = 0.5 * cross.length();
-            area += a;
-            center += a * (p[0] + p[1] + p[2]) / 3.0;
-            normal += cross;
-            vertex_normal += t.iter().map(|&v| mesh.normals[v as usize]).sum::<Vec3>();
-        }
+        let (area, center, normal) = leaf_shape(tris, positions, &mesh.normals);
         total_area += area;
-        let center = if area > 0.0 {
-            center / area
-        } else {
+        let has_area = area > 0.0;
+        if !has_area {
             zero_area += 1;
-            mean(tris.iter().flatten().map(|&v| positions[v as usize]))
-        };
-        let mut normal = normal.try_normalize().unwrap_or(Vec3::Y);
-        if normal.dot(vertex_normal) < 0.0 {
-            normal = -normal; // agree with the mesh's own normals
         }
         let ring = terminals
             .iter()
@@ -638,4 +595,64 @@ fn attach_leaves(
         .union(Bounds::from_points(positions.iter().copied()));
     model.leaf_positions = mesh.positions;
     model.leaf_normals = mesh.normals;
+}
+
+/// The triangles split into connected patches (each one leaf), in the order each patch
+/// first appears.
+fn connected_patches(triangles: &[[u32; 3]], vertices: usize) -> Vec<Vec<[u32; 3]>> {
+    // Union-find over vertices: each connected patch is one leaf.
+    let mut parent: Vec<u32> = (0..vertices as u32).collect();
+    fn find(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            parent[v as usize] = parent[parent[v as usize] as usize];
+            v = parent[v as usize];
+        }
+        v
+    }
+    for t in triangles {
+        let a = find(&mut parent, t[0]);
+        for &v in &t[1..] {
+            let b = find(&mut parent, v);
+            parent[b as usize] = a;
+        }
+    }
+    let mut leaf_of_root: HashMap<u32, usize> = HashMap::new();
+    let mut leaf_triangles: Vec<Vec<[u32; 3]>> = Vec::new();
+    for t in triangles {
+        let root = find(&mut parent, t[0]);
+        let leaf = *leaf_of_root.entry(root).or_insert_with(|| {
+            leaf_triangles.push(Vec::new());
+            leaf_triangles.len() - 1
+        });
+        leaf_triangles[leaf].push(*t);
+    }
+    leaf_triangles
+}
+
+/// A leaf's area, centre (area-weighted; the vertices' mean when it has no area) and unit
+/// normal (agreeing with the mesh's own vertex normals).
+fn leaf_shape(tris: &[[u32; 3]], positions: &[Vec3], normals: &[Vec3]) -> (f32, Vec3, Vec3) {
+    let mut area = 0.0;
+    let mut center = Vec3::ZERO;
+    let mut normal = Vec3::ZERO;
+    let mut vertex_normal = Vec3::ZERO;
+    for t in tris {
+        let p = t.map(|v| positions[v as usize]);
+        let cross = (p[1] - p[0]).cross(p[2] - p[0]);
+        let a = 0.5 * cross.length();
+        area += a;
+        center += a * (p[0] + p[1] + p[2]) / 3.0;
+        normal += cross;
+        vertex_normal += t.iter().map(|&v| normals[v as usize]).sum::<Vec3>();
+    }
+    let center = if area > 0.0 {
+        center / area
+    } else {
+        mean(tris.iter().flatten().map(|&v| positions[v as usize]))
+    };
+    let mut normal = normal.try_normalize().unwrap_or(Vec3::Y);
+    if normal.dot(vertex_normal) < 0.0 {
+        normal = -normal; // agree with the mesh's own normals
+    }
+    (area, center, normal)
 }

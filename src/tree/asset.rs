@@ -59,32 +59,52 @@ fn inconsistent(field: &'static str, detail: impl Into<String>) -> TreeFileError
     }
 }
 
+/// An error naming `field` when one of `values` is not below `len`.
+fn check_in_range(field: &'static str, values: &[u32], len: usize) -> Result<(), TreeFileError> {
+    match values.iter().find(|&&v| v as usize >= len) {
+        Some(v) => Err(inconsistent(
+            field,
+            format!("index {v} is out of range (length {len})"),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// An error naming `field` when one of `values` is not finite.
+fn check_finite(field: &'static str, values: &[bevy::math::Vec3]) -> Result<(), TreeFileError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(inconsistent(field, format!("element {i} is not finite"))),
+        None => Ok(()),
+    }
+}
+
+/// Not a finite, non-negative number.
+fn is_bad_number(x: &f32) -> bool {
+    !x.is_finite() || *x < 0.0
+}
+
 impl TreeModel {
     /// Checks that every index and range points inside its array and every number is
     /// finite, so that a hand-edited or corrupted file cannot make the renderer or the
     /// LOD read out of bounds later.
     pub fn validate(&self) -> Result<(), TreeFileError> {
+        self.validate_vertices()?;
+        self.validate_rings()?;
+        self.validate_segments()?;
+        self.validate_scalars()?;
+        self.validate_leaves()
+    }
+
+    /// The vertex and index arrays: finite, parallel, in range.
+    fn validate_vertices(&self) -> Result<(), TreeFileError> {
         let rings = self.rings.len();
         let trunk_vertices = self.trunk_positions.len();
         let leaf_vertices = self.leaf_positions.len();
-        let in_range =
-            |field, values: &[u32], len: usize| match values.iter().find(|&&v| v as usize >= len) {
-                Some(v) => Err(inconsistent(
-                    field,
-                    format!("index {v} is out of range (length {len})"),
-                )),
-                None => Ok(()),
-            };
-        let finite =
-            |field, values: &[bevy::math::Vec3]| match values.iter().position(|v| !v.is_finite()) {
-                Some(i) => Err(inconsistent(field, format!("element {i} is not finite"))),
-                None => Ok(()),
-            };
-        finite("trunk_positions", &self.trunk_positions)?;
-        finite("trunk_normals", &self.trunk_normals)?;
-        finite("leaf_positions", &self.leaf_positions)?;
-        finite("leaf_normals", &self.leaf_normals)?;
-        finite("ring_vectors", &self.ring_vectors)?;
+        check_finite("trunk_positions", &self.trunk_positions)?;
+        check_finite("trunk_normals", &self.trunk_normals)?;
+        check_finite("leaf_positions", &self.leaf_positions)?;
+        check_finite("leaf_normals", &self.leaf_normals)?;
+        check_finite("ring_vectors", &self.ring_vectors)?;
         if self.trunk_normals.len() != trunk_vertices
             || self.trunk_vertex_ring.len() != trunk_vertices
         {
@@ -110,15 +130,21 @@ impl TreeModel {
                 "index counts must be multiples of 3",
             ));
         }
-        in_range("trunk_indices", &self.trunk_indices, trunk_vertices)?;
-        in_range("leaf_indices", &self.leaf_indices, leaf_vertices)?;
-        in_range("ring_vertices", &self.ring_vertices, trunk_vertices)?;
-        in_range("trunk_vertex_ring", &self.trunk_vertex_ring, rings)?;
-        in_range(
+        check_in_range("trunk_indices", &self.trunk_indices, trunk_vertices)?;
+        check_in_range("leaf_indices", &self.leaf_indices, leaf_vertices)?;
+        check_in_range("ring_vertices", &self.ring_vertices, trunk_vertices)?;
+        check_in_range("trunk_vertex_ring", &self.trunk_vertex_ring, rings)?;
+        check_in_range(
             "leaf_vertex_leaf",
             &self.leaf_vertex_leaf,
             self.leaves.len().max(1),
         )?;
+        Ok(())
+    }
+
+    /// The rings: each after its parent, pointing inside the model.
+    fn validate_rings(&self) -> Result<(), TreeFileError> {
+        let rings = self.rings.len();
         for (i, r) in self.rings.iter().enumerate() {
             // Parents come first: the wind walks rings in order, each after its parent, and
             // this also rules out cycles.
@@ -143,6 +169,12 @@ impl TreeModel {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// The trunk's segments: parallel, finite, sorted thin → thick, tiling the triangles.
+    fn validate_segments(&self) -> Result<(), TreeFileError> {
+        let rings = self.rings.len();
         let s = &self.segments;
         let n = s.ring.len();
         if s.triangle_offsets.len() != n + 1
@@ -152,8 +184,7 @@ impl TreeModel {
         {
             return Err(inconsistent("segments", "parallel arrays differ in length"));
         }
-        in_range("segments.ring", &s.ring, rings)?;
-        let bad_number = |x: &f32| !x.is_finite() || *x < 0.0;
+        check_in_range("segments.ring", &s.ring, rings)?;
         if let Some(i) = s
             .line
             .iter()
@@ -164,7 +195,7 @@ impl TreeModel {
                 format!("segment {i} is not finite"),
             ));
         }
-        if let Some(i) = s.diameter.iter().position(bad_number) {
+        if let Some(i) = s.diameter.iter().position(is_bad_number) {
             return Err(inconsistent(
                 "segments.diameter",
                 format!("segment {i} is negative or not finite"),
@@ -176,7 +207,7 @@ impl TreeModel {
                 "segments must be sorted thin → thick",
             ));
         }
-        if s.cumulative_length.iter().any(bad_number)
+        if s.cumulative_length.iter().any(is_bad_number)
             || s.cumulative_length.windows(2).any(|w| w[0] > w[1])
         {
             return Err(inconsistent(
@@ -184,6 +215,22 @@ impl TreeModel {
                 "must be finite and never fall",
             ));
         }
+        if s.triangle_offsets.windows(2).any(|w| w[0] > w[1])
+            || s.triangle_offsets.first().is_some_and(|&o| o != 0)
+            || s.triangle_offsets
+                .last()
+                .is_some_and(|&o| o as usize * 3 != self.trunk_indices.len())
+        {
+            return Err(inconsistent(
+                "segments.triangle_offsets",
+                "must rise from 0 to the trunk's triangle count",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The bounds, areas and colours.
+    fn validate_scalars(&self) -> Result<(), TreeFileError> {
         for (field, bounds) in [
             ("bounds", &self.bounds),
             ("trunk_bounds", &self.trunk_bounds),
@@ -199,7 +246,7 @@ impl TreeModel {
             ("mean_leaf_triangle_area", self.mean_leaf_triangle_area),
             ("mean_trunk_triangle_area", self.mean_trunk_triangle_area),
         ] {
-            if bad_number(&value) {
+            if is_bad_number(&value) {
                 return Err(inconsistent(field, "must be finite and not negative"));
             }
         }
@@ -210,21 +257,16 @@ impl TreeModel {
             ("bark_color", self.bark_color),
             ("leaf_color", self.leaf_color),
         ] {
-            if color.iter().any(bad_number) {
+            if color.iter().any(is_bad_number) {
                 return Err(inconsistent(field, "must be finite and not negative"));
             }
         }
-        if s.triangle_offsets.windows(2).any(|w| w[0] > w[1])
-            || s.triangle_offsets.first().is_some_and(|&o| o != 0)
-            || s.triangle_offsets
-                .last()
-                .is_some_and(|&o| o as usize * 3 != self.trunk_indices.len())
-        {
-            return Err(inconsistent(
-                "segments.triangle_offsets",
-                "must rise from 0 to the trunk's triangle count",
-            ));
-        }
+        Ok(())
+    }
+
+    /// The leaves and their groups, which tile them in order.
+    fn validate_leaves(&self) -> Result<(), TreeFileError> {
+        let rings = self.rings.len();
         let leaf_triangles = (self.leaf_indices.len() / 3) as u32;
         for (i, leaf) in self.leaves.iter().enumerate() {
             if leaf.triangles.start > leaf.triangles.end
@@ -244,7 +286,7 @@ impl TreeModel {
                 || g.leaves.start > g.leaves.end
                 || g.leaves.end as usize > self.leaves.len()
                 || !g.bounds.center.is_finite()
-                || bad_number(&g.bounds.radius)
+                || is_bad_number(&g.bounds.radius)
             {
                 return Err(inconsistent(
                     "leaf_groups",

@@ -6,7 +6,7 @@ mod analyze;
 mod asset;
 #[cfg(feature = "gltf")]
 mod gltf;
-mod group;
+mod group_impostor;
 mod lod;
 #[cfg(feature = "render")]
 mod mesh;
@@ -24,7 +24,7 @@ pub use asset::{
 pub use gltf::{
     BufferFile, GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffers, import_gltf,
 };
-pub use group::{GroupMember, GroupModelOptions, group_model};
+pub use group_impostor::{GroupImpostorMember, GroupImpostorOptions, group_impostor_model};
 pub(crate) use lod::trunk_line_runs;
 pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
 #[cfg(feature = "render")]

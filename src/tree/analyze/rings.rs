@@ -157,10 +157,7 @@ impl Hierarchy {
         };
         let below: Vec<bool> = positions.iter().map(|p| p.y <= ground).collect();
         if !(0..n).any(|v| below[v] && used[v]) {
-            let lowest = (0..n)
-                .filter(|&v| used[v])
-                .map(|v| positions[v].y)
-                .fold(f32::INFINITY, f32::min);
+            let lowest = lowest_used(&used, positions);
             return Err(TreeAnalysisError::NoRootRing { ground, lowest });
         }
         let mut on_open_end = vec![false; n];
@@ -198,56 +195,21 @@ impl Hierarchy {
             let piece = piece_of[lp[0] as usize] as usize;
             widest_end[piece] = widest_end[piece].max(radius);
         }
-        let mut candidates: Vec<(Vec<u32>, f32)> = Vec::new();
-        let mut queue = Vec::new();
-        let mut not_a_ring = None;
-        for part in components(
-            (0..n as u32).filter(|&v| below[v as usize] && used[v as usize]),
+        let (candidates, not_a_ring) = root_candidates(
+            &RootSearch {
+                boundary: &boundary,
+                end_radius: &end_radius,
+                widest_end: &widest_end,
+                piece_of: &piece_of,
+                below: &below,
+                used: &used,
+                on_open_end: &on_open_end,
+            },
+            positions,
             &adjacency,
-            |v| below[v as usize],
-        ) {
-            let inside = |v: &u32| part.binary_search(v).is_ok();
-            let ends: Vec<usize> = (0..boundary.len())
-                .filter(|&e| boundary[e].iter().all(inside))
-                .collect();
-            if !ends.is_empty() {
-                // A piece stands on its widest open end; a narrower one in the ground is
-                // a drooping twig's tip, and the twig is attached by its base instead.
-                for e in ends {
-                    let piece = piece_of[boundary[e][0] as usize] as usize;
-                    if end_radius[e] + tolerance >= widest_end[piece] {
-                        candidates.push((boundary[e].clone(), end_radius[e]));
-                    }
-                }
-                continue;
-            }
-            if part.iter().any(|&v| on_open_end[v as usize]) {
-                // Part of an open end, the rest of which stands above the ground. Should
-                // nothing else be a root, this part is what failed to be one.
-                if let Err(e) = ring_shape(&part, positions, &adjacency, tolerance) {
-                    not_a_ring.get_or_insert(e);
-                }
-                continue;
-            }
-            // No open end in it: a capped end (a fan around a centre, or a flat round
-            // polygon) is a root; a patch of a tube's side dipping into the ground (a
-            // drooping twig's middle) is neither.
-            match ring_shape(&part, positions, &adjacency, tolerance) {
-                Ok(shape) if !shape.extra.is_empty() || is_flat_and_round(&part, positions) => {
-                    let radius = shape
-                        .loop_vertices
-                        .iter()
-                        .map(|&v| positions[v as usize].distance(shape.center))
-                        .sum::<f32>()
-                        / shape.loop_vertices.len() as f32;
-                    candidates.push((part, radius));
-                }
-                Ok(_) => {}
-                Err(e) => {
-                    not_a_ring.get_or_insert(e);
-                }
-            }
-        }
+            tolerance,
+        );
+        let mut queue = Vec::new();
         // Stems stand side by side; a twig whose parent dips into the ground (a bush's)
         // may stand there on its widest end too, but it is far thinner than the trunk,
         // and is attached to its parent instead.
@@ -258,10 +220,7 @@ impl Hierarchy {
             }
         }
         if queue.is_empty() {
-            let lowest = (0..n)
-                .filter(|&v| used[v])
-                .map(|v| positions[v].y)
-                .fold(f32::INFINITY, f32::min);
+            let lowest = lowest_used(&used, positions);
             return Err(not_a_ring.unwrap_or(TreeAnalysisError::NoRootRing { ground, lowest }));
         }
         h.grow(&mut queue, positions, &adjacency);
@@ -273,11 +232,26 @@ impl Hierarchy {
             tolerance,
             warnings,
         );
-        // What is left has no open end. A speck (a twig thinner and shorter than a few
-        // hundred tolerances, welded shut) hangs where it is as one ring; anything larger
-        // floating apart from the tree is an error.
-        while let Some(v) = (0..n).find(|&v| used[v] && h.vertex_ring[v] == NO_RING) {
-            let piece = components([v as u32], &adjacency, |_| true).remove(0);
+        h.hang_specks(&used, positions, &adjacency, tolerance)?;
+        if let (count, Some(position)) = h.irregular {
+            warnings.push(AnalysisWarning::IrregularRings { count, position });
+        }
+        Ok(h)
+    }
+
+    /// The pieces left without a ring have no open end. A speck (a twig thinner and
+    /// shorter than a few hundred tolerances, welded shut) hangs where it is as one ring;
+    /// anything larger floating apart from the tree is an error.
+    fn hang_specks(
+        &mut self,
+        used: &[bool],
+        positions: &[Vec3],
+        adjacency: &Adjacency,
+        tolerance: f32,
+    ) -> Result<(), TreeAnalysisError> {
+        let n = positions.len();
+        while let Some(v) = (0..n).find(|&v| used[v] && self.vertex_ring[v] == NO_RING) {
+            let piece = components([v as u32], adjacency, |_| true).remove(0);
             let center = mean(piece.iter().map(|&w| positions[w as usize]));
             let extent = piece
                 .iter()
@@ -289,14 +263,11 @@ impl Hierarchy {
                     vertices: piece.len(),
                 });
             }
-            let parent = h.best_place(center, tolerance).parent;
-            let ring = h.add_ring(piece, parent, positions, &adjacency);
-            h.rings[ring as usize].piece_base = true;
+            let parent = self.best_place(center, tolerance).parent;
+            let ring = self.add_ring(piece, parent, positions, adjacency);
+            self.rings[ring as usize].piece_base = true;
         }
-        if let (count, Some(position)) = h.irregular {
-            warnings.push(AnalysisWarning::IrregularRings { count, position });
-        }
-        Ok(h)
+        Ok(())
     }
 
     /// Attaches the separate pieces (branches modelled apart) by their open ends, nearest
@@ -515,108 +486,8 @@ impl Hierarchy {
                 *r = 0;
             }
         }
-        let mut rings: Vec<Ring> = built
-            .iter()
-            .map(|r| Ring {
-                center: r.center,
-                diameter: r.diameter,
-                parent: r.parent,
-                children: Vec::new(),
-                level: r.level,
-                distance_to_parent: if r.parent == NO_RING {
-                    0.0
-                } else {
-                    r.center.distance(built[r.parent as usize].center)
-                },
-                vertices: 0..0,
-                leaf_group: None,
-            })
-            .collect();
-        for i in 0..rings.len() {
-            let p = rings[i].parent;
-            if p != NO_RING {
-                rings[p as usize].children.push(i as u32);
-            }
-        }
-        let mut ring_vertices = Vec::new();
-        let mut ring_vectors = Vec::new();
-        for (ring, b) in rings.iter_mut().zip(&built) {
-            let start = ring_vertices.len() as u32;
-            for &v in &b.loop_vertices {
-                ring_vertices.push(v);
-                ring_vectors.push(mesh.positions[v as usize] - b.center);
-            }
-            ring.vertices = start..ring_vertices.len() as u32;
-        }
-
-        // Each triangle belongs to the segment ending at its deepest ring; a root cap goes
-        // to the root's first child.
-        let mut segment_of_triangle = Vec::with_capacity(triangles.len());
-        for t in &triangles {
-            let mut ring = t
-                .iter()
-                .map(|&v| vertex_ring[v as usize])
-                .max_by_key(|&r| (rings[r as usize].level, r))
-                .unwrap_or(0);
-            if rings[ring as usize].is_root() {
-                match rings[ring as usize].children.first() {
-                    Some(&c) => ring = c,
-                    None => {
-                        return Err(TreeAnalysisError::NoSegment {
-                            position: rings[ring as usize].center,
-                        });
-                    }
-                }
-            }
-            segment_of_triangle.push(ring);
-        }
-        let mut order: Vec<u32> = (0..rings.len() as u32)
-            .filter(|&r| !rings[r as usize].is_root())
-            .collect();
-        let segment_diameter = |r: u32| {
-            rings[r as usize]
-                .diameter
-                .max(rings[rings[r as usize].parent as usize].diameter)
-        };
-        order.sort_by(|&a, &b| {
-            segment_diameter(a)
-                .total_cmp(&segment_diameter(b))
-                .then(a.cmp(&b))
-        });
-        let mut slot = vec![u32::MAX; rings.len()];
-        for (s, &r) in order.iter().enumerate() {
-            slot[r as usize] = s as u32;
-        }
-        let mut counts = vec![0_u32; order.len() + 1];
-        for &r in &segment_of_triangle {
-            counts[slot[r as usize] as usize + 1] += 1;
-        }
-        for s in 0..order.len() {
-            counts[s + 1] += counts[s];
-        }
-        let triangle_offsets = counts.clone();
-        let mut cursor = counts;
-        let mut trunk_indices = vec![0_u32; triangles.len() * 3];
-        for (t, &r) in triangles.iter().zip(&segment_of_triangle) {
-            let s = slot[r as usize] as usize;
-            let at = cursor[s] as usize * 3;
-            trunk_indices[at..at + 3].copy_from_slice(t);
-            cursor[s] += 1;
-        }
-        let mut segments = Segments {
-            triangle_offsets,
-            ..Segments::default()
-        };
-        let mut total_length = 0.0;
-        for &r in &order {
-            let ring = &rings[r as usize];
-            let lower = rings[ring.parent as usize].center;
-            segments.ring.push(r);
-            segments.line.push([lower, ring.center]);
-            segments.diameter.push(segment_diameter(r));
-            total_length += lower.distance(ring.center);
-            segments.cumulative_length.push(total_length);
-        }
+        let (rings, ring_vertices, ring_vectors) = model_rings(&built, &mesh.positions);
+        let (segments, trunk_indices) = trunk_segments(&rings, &triangles, &vertex_ring)?;
 
         let positions = mesh.positions;
         let mut area_sum = 0.0_f32;
@@ -837,4 +708,201 @@ fn boundary_loops(triangles: &[[u32; 3]], vertices: usize) -> Vec<Vec<u32>> {
         &adjacency,
         |_| true,
     )
+}
+
+/// What the search for root rings reads of the mesh, per vertex and per open end.
+struct RootSearch<'a> {
+    boundary: &'a [Vec<u32>],
+    end_radius: &'a [f32],
+    /// Per piece, its widest open end's radius.
+    widest_end: &'a [f32],
+    piece_of: &'a [u32],
+    below: &'a [bool],
+    used: &'a [bool],
+    on_open_end: &'a [bool],
+}
+
+/// The root rings' candidates (vertices and radius), and what kept the first part in the
+/// ground that failed from being a ring.
+fn root_candidates(
+    r: &RootSearch,
+    positions: &[Vec3],
+    adjacency: &Adjacency,
+    tolerance: f32,
+) -> (Vec<(Vec<u32>, f32)>, Option<TreeAnalysisError>) {
+    let n = positions.len();
+    let mut candidates: Vec<(Vec<u32>, f32)> = Vec::new();
+    let mut not_a_ring = None;
+    for part in components(
+        (0..n as u32).filter(|&v| r.below[v as usize] && r.used[v as usize]),
+        adjacency,
+        |v| r.below[v as usize],
+    ) {
+        let inside = |v: &u32| part.binary_search(v).is_ok();
+        let ends: Vec<usize> = (0..r.boundary.len())
+            .filter(|&e| r.boundary[e].iter().all(inside))
+            .collect();
+        if !ends.is_empty() {
+            // A piece stands on its widest open end; a narrower one in the ground is
+            // a drooping twig's tip, and the twig is attached by its base instead.
+            for e in ends {
+                let piece = r.piece_of[r.boundary[e][0] as usize] as usize;
+                if r.end_radius[e] + tolerance >= r.widest_end[piece] {
+                    candidates.push((r.boundary[e].clone(), r.end_radius[e]));
+                }
+            }
+            continue;
+        }
+        if part.iter().any(|&v| r.on_open_end[v as usize]) {
+            // Part of an open end, the rest of which stands above the ground. Should
+            // nothing else be a root, this part is what failed to be one.
+            if let Err(e) = ring_shape(&part, positions, adjacency, tolerance) {
+                not_a_ring.get_or_insert(e);
+            }
+            continue;
+        }
+        // No open end in it: a capped end (a fan around a centre, or a flat round
+        // polygon) is a root; a patch of a tube's side dipping into the ground (a
+        // drooping twig's middle) is neither.
+        match ring_shape(&part, positions, adjacency, tolerance) {
+            Ok(shape) if !shape.extra.is_empty() || is_flat_and_round(&part, positions) => {
+                let radius = shape
+                    .loop_vertices
+                    .iter()
+                    .map(|&v| positions[v as usize].distance(shape.center))
+                    .sum::<f32>()
+                    / shape.loop_vertices.len() as f32;
+                candidates.push((part, radius));
+            }
+            Ok(_) => {}
+            Err(e) => {
+                not_a_ring.get_or_insert(e);
+            }
+        }
+    }
+    (candidates, not_a_ring)
+}
+
+/// The height of the lowest vertex a triangle uses.
+fn lowest_used(used: &[bool], positions: &[Vec3]) -> f32 {
+    (0..positions.len())
+        .filter(|&v| used[v])
+        .map(|v| positions[v].y)
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// The model's rings from the built ones, with their children, and each ring's loop
+/// vertices with their offsets from its centre.
+fn model_rings(built: &[RingBuild], positions: &[Vec3]) -> (Vec<Ring>, Vec<u32>, Vec<Vec3>) {
+    let mut rings: Vec<Ring> = built
+        .iter()
+        .map(|r| Ring {
+            center: r.center,
+            diameter: r.diameter,
+            parent: r.parent,
+            children: Vec::new(),
+            level: r.level,
+            distance_to_parent: if r.parent == NO_RING {
+                0.0
+            } else {
+                r.center.distance(built[r.parent as usize].center)
+            },
+            vertices: 0..0,
+            leaf_group: None,
+        })
+        .collect();
+    for i in 0..rings.len() {
+        let p = rings[i].parent;
+        if p != NO_RING {
+            rings[p as usize].children.push(i as u32);
+        }
+    }
+    let mut ring_vertices = Vec::new();
+    let mut ring_vectors = Vec::new();
+    for (ring, b) in rings.iter_mut().zip(built) {
+        let start = ring_vertices.len() as u32;
+        for &v in &b.loop_vertices {
+            ring_vertices.push(v);
+            ring_vectors.push(positions[v as usize] - b.center);
+        }
+        ring.vertices = start..ring_vertices.len() as u32;
+    }
+    (rings, ring_vertices, ring_vectors)
+}
+
+/// The trunk's segments, thin → thick, and its triangles ordered by segment.
+fn trunk_segments(
+    rings: &[Ring],
+    triangles: &[[u32; 3]],
+    vertex_ring: &[u32],
+) -> Result<(Segments, Vec<u32>), TreeAnalysisError> {
+    // Each triangle belongs to the segment ending at its deepest ring; a root cap goes
+    // to the root's first child.
+    let mut segment_of_triangle = Vec::with_capacity(triangles.len());
+    for t in triangles {
+        let mut ring = t
+            .iter()
+            .map(|&v| vertex_ring[v as usize])
+            .max_by_key(|&r| (rings[r as usize].level, r))
+            .unwrap_or(0);
+        if rings[ring as usize].is_root() {
+            match rings[ring as usize].children.first() {
+                Some(&c) => ring = c,
+                None => {
+                    return Err(TreeAnalysisError::NoSegment {
+                        position: rings[ring as usize].center,
+                    });
+                }
+            }
+        }
+        segment_of_triangle.push(ring);
+    }
+    let mut order: Vec<u32> = (0..rings.len() as u32)
+        .filter(|&r| !rings[r as usize].is_root())
+        .collect();
+    let segment_diameter = |r: u32| {
+        rings[r as usize]
+            .diameter
+            .max(rings[rings[r as usize].parent as usize].diameter)
+    };
+    order.sort_by(|&a, &b| {
+        segment_diameter(a)
+            .total_cmp(&segment_diameter(b))
+            .then(a.cmp(&b))
+    });
+    let mut slot = vec![u32::MAX; rings.len()];
+    for (s, &r) in order.iter().enumerate() {
+        slot[r as usize] = s as u32;
+    }
+    let mut counts = vec![0_u32; order.len() + 1];
+    for &r in &segment_of_triangle {
+        counts[slot[r as usize] as usize + 1] += 1;
+    }
+    for s in 0..order.len() {
+        counts[s + 1] += counts[s];
+    }
+    let triangle_offsets = counts.clone();
+    let mut cursor = counts;
+    let mut trunk_indices = vec![0_u32; triangles.len() * 3];
+    for (t, &r) in triangles.iter().zip(&segment_of_triangle) {
+        let s = slot[r as usize] as usize;
+        let at = cursor[s] as usize * 3;
+        trunk_indices[at..at + 3].copy_from_slice(t);
+        cursor[s] += 1;
+    }
+    let mut segments = Segments {
+        triangle_offsets,
+        ..Segments::default()
+    };
+    let mut total_length = 0.0;
+    for &r in &order {
+        let ring = &rings[r as usize];
+        let lower = rings[ring.parent as usize].center;
+        segments.ring.push(r);
+        segments.line.push([lower, ring.center]);
+        segments.diameter.push(segment_diameter(r));
+        total_length += lower.distance(ring.center);
+        segments.cumulative_length.push(total_length);
+    }
+    Ok((segments, trunk_indices))
 }

@@ -5,26 +5,22 @@
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use super::value::{Object, Part, VisibleTree};
-use super::{LADDER_FRACTIONS, LadderEntry};
-use crate::budget::{
-    HierarchicalLod, HierarchyOutcome, Level, LodHierarchy, NodeId, NodeSelection,
-};
+use crate::budget::{HierarchicalLod, HierarchyOutcome, LodHierarchy, NodeId, NodeSelection};
 use crate::culling::{BoxHierarchy, NodeVisibility};
+use crate::lod::search::Rungs;
+use crate::lod::value::{Object, Part, VisibleTree};
+use crate::lod::{LadderEntry, RUNG_FRACTIONS};
 
-/// A rung ladder: each representation's cost and benefit, best → cheapest, and the time
-/// its search is given (for a group: the fraction of its full detail).
-pub(super) type Ladder = (
-    [Level; LADDER_FRACTIONS.len()],
-    [f32; LADDER_FRACTIONS.len()],
-);
+/// An object's or a group impostor's rungs, and the time each rung's search is given
+/// (for a group impostor: the fraction of its full detail).
+pub(super) type SearchedRungs = (Rungs, [f32; RUNG_FRACTIONS.len()]);
 
 /// Who a node of this frame's hierarchy is, across frames.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 enum Key {
     /// A box of the culling hierarchy.
     Box(u32),
-    /// A tree, as the group of its trunk and leaves.
+    /// A tree, as the parent of its trunk and leaves.
     Tree(Entity),
     /// One object of the hand-out.
     Object(Entity, Part),
@@ -48,29 +44,29 @@ pub(super) enum Drawn {
     Object {
         /// Index into the frame's objects.
         object: u32,
-        /// Rung of its ladder.
+        /// Its rung.
         level: u32,
         /// Time its search is given.
         time: f32,
     },
     /// The group impostor of box `node`, at `fraction` of its full detail.
-    Group {
+    Impostor {
         /// The box.
         node: u32,
-        /// Rung of its ladder.
+        /// Its rung.
         level: u32,
         /// Fraction of its full detail.
         fraction: f32,
     },
 }
 
-/// The last frame's cut of the [`StrategyKind::Hierarchical`](super::StrategyKind::Hierarchical)
+/// The last frame's cut of the [`StrategyKind::Hierarchical`](crate::lod::StrategyKind::Hierarchical)
 /// strategy, as the solver saw it: for inspection and tests (for example re-solving
 /// `hierarchy` from `seed` with a fresh [`HierarchicalLod`] gives `selection`).
 #[derive(Resource, Default, Debug)]
 pub struct HierarchicalCut {
-    /// The frame's hierarchy: visible boxes (with their group impostors' ladders) over
-    /// visible trees over their trunk and leaves objects (each with its ladder).
+    /// The frame's hierarchy: visible boxes (with their group impostors' rungs) over
+    /// visible trees over their trunk and leaves objects (each with its rungs).
     pub hierarchy: LodHierarchy,
     /// Where the solve started: last frame's selection carried over by node identity.
     pub seed: Vec<NodeSelection>,
@@ -94,7 +90,7 @@ pub(super) struct HierarchicalFrame {
     hierarchy: LodHierarchy,
     keys: Vec<Key>,
     what: Vec<What>,
-    times: Vec<[f32; LADDER_FRACTIONS.len()]>,
+    times: Vec<[f32; RUNG_FRACTIONS.len()]>,
     /// Last frame's selection by node identity.
     previous: HashMap<Key, NodeSelection>,
     /// Per box, its visible trees' summed value and full-detail cost when it was last
@@ -135,7 +131,7 @@ pub(super) struct CutOutcome {
     /// The solver's totals (for the coarsest cut when nothing fitted).
     pub(super) solved: HierarchyOutcome,
     /// Group impostors in the cut.
-    pub(super) groups_drawn: u32,
+    pub(super) impostors_drawn: u32,
     /// Not even the coarsest cut fitted: the solver left the scene empty and the coarsest
     /// cut is drawn instead.
     pub(super) scene_dropped: bool,
@@ -154,19 +150,19 @@ pub(super) struct HierarchyInputs<'a> {
     /// or felled do not).
     pub(super) layout: Option<u64>,
     /// Whether box `node` has a group impostor (built for these boxes).
-    pub(super) has_group: &'a dyn Fn(usize) -> bool,
+    pub(super) has_impostor: &'a dyn Fn(usize) -> bool,
 }
 
 impl HierarchicalFrame {
     /// Builds this frame's hierarchy, solves it from last frame's cut and leaves the cut
-    /// in [`drawn`](Self::drawn). `ladder(i)` is object `i`'s ladder; `group_ladder(node,
+    /// in [`drawn`](Self::drawn). `object_rungs(i)` are object `i`'s rungs; `impostor_rungs(node,
     /// value, full)` the group impostor's of box `node` (`None` without one), given its
     /// visible trees' summed value and full-detail cost.
     pub(super) fn solve(
         &mut self,
         inputs: &HierarchyInputs,
-        ladder: &mut dyn FnMut(usize) -> Ladder,
-        group_ladder: &mut dyn FnMut(usize, f32, f32) -> Option<Ladder>,
+        object_rungs: &mut dyn FnMut(usize) -> SearchedRungs,
+        impostor_rungs: &mut dyn FnMut(usize, f32, f32) -> Option<SearchedRungs>,
         cut: &mut HierarchicalCut,
     ) -> CutOutcome {
         self.hierarchy = LodHierarchy::new();
@@ -192,14 +188,14 @@ impl HierarchicalFrame {
             match object.part {
                 Part::Trunk => self.tree_objects[object.index as usize][0] = i as u32,
                 Part::Leaves => self.tree_objects[object.index as usize][1] = i as u32,
-                Part::Ladder => loose.push(i),
+                Part::Mesh => loose.push(i),
             }
         }
         let mut built = Builder {
             frame: self,
             inputs,
-            ladder,
-            group_ladder,
+            object_rungs,
+            impostor_rungs,
         };
         if let Some(boxes) = inputs.boxes {
             built.add_box(boxes, 0, false, false);
@@ -260,10 +256,10 @@ impl HierarchicalFrame {
         core::mem::swap(&mut cut.hierarchy, &mut self.hierarchy);
         core::mem::swap(&mut cut.seed, &mut self.seed);
         CutOutcome {
-            groups_drawn: self
+            impostors_drawn: self
                 .drawn
                 .iter()
-                .filter(|d| matches!(d, Drawn::Group { .. }))
+                .filter(|d| matches!(d, Drawn::Impostor { .. }))
                 .count() as u32,
             solved: outcome,
             scene_dropped,
@@ -282,24 +278,24 @@ impl HierarchicalFrame {
     }
 
     /// Whether box `node` enters this frame's hierarchy with what is under it (`Some`,
-    /// with whether it was drawn as its group last frame, which its children are then
-    /// under), or alone as a leaf with its group impostor's ladder (`None`).
+    /// with whether it was drawn as its group impostor last frame, which its children are then
+    /// under), or alone as a leaf with its group impostor's rungs (`None`).
     ///
     /// Alone where last frame's cut makes opening it this frame impossible: below a box
-    /// drawn as its group (`under_group`), or drawn as its group at a rung it can still
+    /// drawn as its group impostor (`under_impostor`), or drawn as its group impostor at a rung it can still
     /// refine within. Its trees' value and cost are then last known ones. So the work of
     /// a frame follows the cut, not every tree in view; the cut refines by at most one
     /// box level a frame (coarsening is not limited).
     fn expands(
         &self,
         node: usize,
-        under_group: bool,
-        has_group: &dyn Fn(usize) -> bool,
+        under_impostor: bool,
+        has_impostor: &dyn Fn(usize) -> bool,
     ) -> Option<bool> {
         let previous = self.previous.get(&Key::Box(node as u32)).copied();
-        let alone = has_group(node)
+        let alone = has_impostor(node)
             && self.box_totals.contains_key(&(node as u32))
-            && (under_group || matches!(previous, Some(NodeSelection::Impostor(k)) if k > 0));
+            && (under_impostor || matches!(previous, Some(NodeSelection::Impostor(k)) if k > 0));
         (!alone).then_some(matches!(previous, Some(NodeSelection::Impostor(_))))
     }
 
@@ -311,7 +307,7 @@ impl HierarchicalFrame {
         boxes: &BoxHierarchy,
         layout: Option<u64>,
         instances: usize,
-        has_group: &dyn Fn(usize) -> bool,
+        has_impostor: &dyn Fn(usize) -> bool,
         needed: &mut Vec<bool>,
     ) {
         needed.clear();
@@ -321,15 +317,15 @@ impl HierarchicalFrame {
             return;
         }
         let mut stack = vec![(0usize, false, false)];
-        while let Some((node, inside, under_group)) = stack.pop() {
+        while let Some((node, inside, under_impostor)) = stack.pop() {
             let Some(inside) = in_view(boxes, node, inside) else {
                 continue;
             };
-            let Some(drawn_as_group) = self.expands(node, under_group, has_group) else {
+            let Some(drawn_as_impostor) = self.expands(node, under_impostor, has_impostor) else {
                 continue;
             };
             match boxes.children(node) {
-                Some(range) => stack.extend(range.map(|c| (c, inside, drawn_as_group))),
+                Some(range) => stack.extend(range.map(|c| (c, inside, drawn_as_impostor))),
                 None => {
                     for &i in boxes.node_instances(node) {
                         if let Some(slot) = needed.get_mut(i as usize) {
@@ -370,7 +366,7 @@ impl HierarchicalFrame {
                 time,
             }),
             What::Box(b) => {
-                self.drawn.push(Drawn::Group {
+                self.drawn.push(Drawn::Impostor {
                     node: b,
                     level,
                     fraction: time,
@@ -384,26 +380,26 @@ impl HierarchicalFrame {
 struct Builder<'f, 'i, 'a, 'l> {
     frame: &'f mut HierarchicalFrame,
     inputs: &'i HierarchyInputs<'a>,
-    ladder: &'l mut dyn FnMut(usize) -> Ladder,
-    group_ladder: &'l mut dyn FnMut(usize, f32, f32) -> Option<Ladder>,
+    object_rungs: &'l mut dyn FnMut(usize) -> SearchedRungs,
+    impostor_rungs: &'l mut dyn FnMut(usize, f32, f32) -> Option<SearchedRungs>,
 }
 
 /// A node added: its id, its visible trees' summed value and full-detail cost.
 type Added = (NodeId, f32, f32);
 
 impl Builder<'_, '_, '_, '_> {
-    fn push(&mut self, key: Key, what: What, times: [f32; LADDER_FRACTIONS.len()]) {
+    fn push(&mut self, key: Key, what: What, times: [f32; RUNG_FRACTIONS.len()]) {
         self.frame.keys.push(key);
         self.frame.what.push(what);
         self.frame.times.push(times);
     }
 
     fn add_object(&mut self, i: usize) -> Option<Added> {
-        let (levels, times) = (self.ladder)(i);
+        let (levels, times) = (self.object_rungs)(i);
         let node = self.frame.hierarchy.add_object(&levels).ok()?;
         let object = self.inputs.objects[i];
         let entity = match object.part {
-            Part::Ladder => self.inputs.ladders[object.index as usize].entity,
+            Part::Mesh => self.inputs.ladders[object.index as usize].entity,
             _ => self.inputs.trees[object.index as usize].entity,
         };
         self.push(
@@ -421,7 +417,7 @@ impl Builder<'_, '_, '_, '_> {
             .filter(|&o| o != NONE)
             .filter_map(|o| self.add_object(o as usize))
             .collect();
-        self.group(
+        self.add_parent(
             Key::Tree(self.inputs.trees[t].entity),
             What::Tree,
             &parts,
@@ -429,13 +425,13 @@ impl Builder<'_, '_, '_, '_> {
         )
     }
 
-    /// A group over `children`; one child without impostors of its own is that child.
-    fn group(
+    /// A parent over `children`; one child without impostors of its own is that child.
+    fn add_parent(
         &mut self,
         key: Key,
         what: What,
         children: &[Added],
-        impostors: Option<Ladder>,
+        impostors: Option<SearchedRungs>,
     ) -> Option<Added> {
         let value = children.iter().map(|c| c.1).sum();
         let full = children.iter().map(|c| c.2).sum();
@@ -443,7 +439,13 @@ impl Builder<'_, '_, '_, '_> {
             return children.first().copied();
         }
         let ids: Vec<NodeId> = children.iter().map(|c| c.0).collect();
-        let (levels, times) = impostors.map_or(([Level::new(0.0, 0.0); 7], [0.0; 7]), |l| l);
+        let (levels, times) = impostors.map_or(
+            (
+                [crate::budget::Level::new(0.0, 0.0); RUNG_FRACTIONS.len()],
+                [0.0; RUNG_FRACTIONS.len()],
+            ),
+            |l| l,
+        );
         let levels = if impostors.is_some() {
             &levels[..]
         } else {
@@ -461,21 +463,21 @@ impl Builder<'_, '_, '_, '_> {
         boxes: &BoxHierarchy,
         node: usize,
         inside: bool,
-        under_group: bool,
+        under_impostor: bool,
     ) -> Option<Added> {
         let inside = in_view(boxes, node, inside)?;
         let key = Key::Box(node as u32);
-        let has_group = self.inputs.has_group;
-        let Some(drawn_as_group) = self.frame.expands(node, under_group, has_group) else {
+        let has_impostor = self.inputs.has_impostor;
+        let Some(drawn_as_impostor) = self.frame.expands(node, under_impostor, has_impostor) else {
             let &(value, full) = self.frame.box_totals.get(&(node as u32))?;
-            let (levels, times) = (self.group_ladder)(node, value, full)?;
+            let (levels, times) = (self.impostor_rungs)(node, value, full)?;
             let id = self.frame.hierarchy.add_object(&levels).ok()?;
             self.push(key, What::Box(node as u32), times);
             return Some((id, value, full));
         };
         let children: Vec<Added> = match boxes.children(node) {
             Some(range) => range
-                .filter_map(|child| self.add_box(boxes, child, inside, drawn_as_group))
+                .filter_map(|child| self.add_box(boxes, child, inside, drawn_as_impostor))
                 .collect(),
             None => boxes
                 .node_instances(node)
@@ -495,7 +497,7 @@ impl Builder<'_, '_, '_, '_> {
         let value = children.iter().map(|c| c.1).sum();
         let full = children.iter().map(|c| c.2).sum();
         self.frame.box_totals.insert(node as u32, (value, full));
-        let impostors = (self.group_ladder)(node, value, full);
-        self.group(key, What::Box(node as u32), &children, impostors)
+        let impostors = (self.impostor_rungs)(node, value, full);
+        self.add_parent(key, What::Box(node as u32), &children, impostors)
     }
 }

@@ -7,11 +7,11 @@ use std::time::Instant;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use super::{FrameBudget, GroupSettings, StrategyKind};
+use super::{FrameBudget, GroupImpostorSettings, StrategyKind};
 use crate::culling::ForestCulling;
 use crate::draw::{ModelSlot, TreeDrawList, TreeShading};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
-use crate::tree::{GroupMember, TreeModel, group_model};
+use crate::tree::{GroupImpostorMember, TreeModel, group_impostor_model};
 
 /// Marks the entity of a group impostor: it stands for the trees under box `node` of the
 /// culling hierarchy. It is a [`TreeInstance`] with [`FixedDrawList`], outside the
@@ -31,7 +31,7 @@ pub(crate) struct GroupImpostor {
     pub(crate) origin: Vec3,
     /// What counting its draw list needs.
     pub(crate) slot: ModelSlot,
-    /// Its model's vertices (counted against [`GroupSettings::max_vertices`]).
+    /// Its model's vertices (counted against [`GroupImpostorSettings::max_vertices`]).
     vertices: usize,
 }
 
@@ -47,7 +47,7 @@ pub struct GroupImpostors {
     /// Per box of the hierarchy, its impostor.
     pub(crate) nodes: Vec<Option<GroupImpostor>>,
     /// `(hierarchy version, depth, settings)` they were built for.
-    built: Option<(u64, u32, GroupSettings)>,
+    built: Option<(u64, u32, GroupImpostorSettings)>,
     /// The hierarchy's edits they follow, and when (`Time<Real>` seconds) they were last
     /// brought up to them.
     edits_seen: u64,
@@ -87,7 +87,7 @@ impl GroupImpostors {
 
     /// Whether box `node` of the culling's hierarchy has a group impostor built for the
     /// hierarchy it holds now (impostors of an older hierarchy are not used).
-    pub(crate) fn has_group(&self, culling: Option<&ForestCulling>, node: usize) -> bool {
+    pub(crate) fn has_impostor(&self, culling: Option<&ForestCulling>, node: usize) -> bool {
         let current = culling.is_some_and(|c| {
             let depth = c.hierarchy.as_ref().map_or(0, crate::culling::BoxHierarchy::depth);
             matches!((self.built, c.hierarchy_version()), (Some((v, d, _)), Some(now)) if v == now && d == depth)
@@ -107,7 +107,7 @@ impl GroupImpostors {
 pub(super) fn build_group_impostors(
     mut commands: Commands,
     budget: Res<FrameBudget>,
-    settings: Res<GroupSettings>,
+    settings: Res<GroupImpostorSettings>,
     culling: Option<Res<ForestCulling>>,
     table: Res<ForestInstances>,
     mut models: ResMut<Assets<TreeModel>>,
@@ -180,26 +180,14 @@ pub(super) fn build_group_impostors(
             continue;
         }
         let origin = Vec3::new(bounds.center().x, bounds.min.y, bounds.center().z);
-        let members: Vec<GroupMember> = trees
-            .iter()
-            .filter_map(|&i| {
-                let id = table.model_id(i as usize)?;
-                let mut transform = *table.transforms.get(i as usize)?;
-                transform.translation -= Vec3A::from(origin);
-                Some(GroupMember {
-                    model: models.get(id)?,
-                    transform,
-                    far_first: far_first.get(&id)?,
-                })
-            })
-            .collect();
-        match group_model(&members, &options) {
+        let members = members_around(&table, &models, &far_first, trees, origin);
+        match group_impostor_model(&members, &options) {
             Ok(model) => {
                 vertices += model.trunk_positions.len() + model.leaf_positions.len();
                 if vertices > settings.max_vertices as usize {
                     full = true;
                     info!(
-                        "group impostors stop at culling box {node} (level {}): GroupSettings::max_vertices ({}) reached",
+                        "group impostors stop at culling box {node} (level {}): GroupImpostorSettings::max_vertices ({}) reached",
                         hierarchy.level_of(node),
                         settings.max_vertices
                     );
@@ -222,35 +210,15 @@ pub(super) fn build_group_impostors(
     }
     let rebuilt = built.len();
     for (node, origin, model, first_tree) in built {
+        // Shaded like its first tree.
         let shading = table
             .entities
             .get(first_tree as usize)
             .and_then(|&e| shadings.get(e).ok())
             .copied()
             .unwrap_or_else(|| TreeShading::of_model(&model));
-        let slot = ModelSlot::of(&model);
-        let vertices = model.trunk_positions.len() + model.leaf_positions.len();
-        let handle = models.add(model);
-        let entity = commands
-            .spawn((
-                Name::new(format!("group impostor {node}")),
-                TreeInstance::new(handle.clone()),
-                FixedDrawList,
-                TreeDrawList::default(),
-                shading,
-                GroupImpostorOf { node: node as u32 },
-                Transform::from_translation(origin),
-                // Drawn from this frame on, before transforms propagate again.
-                GlobalTransform::from_translation(origin),
-            ))
-            .id();
-        groups.nodes[node] = Some(GroupImpostor {
-            entity,
-            model: handle,
-            origin,
-            slot,
-            vertices,
-        });
+        let impostor = spawn_impostor(&mut commands, &mut models, node, origin, model, shading);
+        groups.nodes[node] = Some(impostor);
     }
     groups.built = Some(key);
     groups.edits_seen = hierarchy.edits();
@@ -270,5 +238,64 @@ pub(super) fn build_group_impostors(
             boxes.len(),
             groups.build_ms
         );
+    }
+}
+
+/// The trees `trees` of the table as members of a group placed at `origin` (their
+/// transforms relative to it); trees whose model is not loaded are left out.
+fn members_around<'a>(
+    table: &ForestInstances,
+    models: &'a Assets<TreeModel>,
+    far_first: &'a HashMap<AssetId<TreeModel>, Vec<u32>>,
+    trees: &[u32],
+    origin: Vec3,
+) -> Vec<GroupImpostorMember<'a>> {
+    trees
+        .iter()
+        .filter_map(|&i| {
+            let id = table.model_id(i as usize)?;
+            let mut transform = *table.transforms.get(i as usize)?;
+            transform.translation -= Vec3A::from(origin);
+            Some(GroupImpostorMember {
+                model: models.get(id)?,
+                transform,
+                far_first: far_first.get(&id)?,
+            })
+        })
+        .collect()
+}
+
+/// Spawns box `node`'s group impostor: `model` at `origin`, drawn with a fixed list the
+/// Budget stage writes.
+fn spawn_impostor(
+    commands: &mut Commands,
+    models: &mut Assets<TreeModel>,
+    node: usize,
+    origin: Vec3,
+    model: TreeModel,
+    shading: TreeShading,
+) -> GroupImpostor {
+    let slot = ModelSlot::of(&model);
+    let vertices = model.trunk_positions.len() + model.leaf_positions.len();
+    let handle = models.add(model);
+    let entity = commands
+        .spawn((
+            Name::new(format!("group impostor {node}")),
+            TreeInstance::new(handle.clone()),
+            FixedDrawList,
+            TreeDrawList::default(),
+            shading,
+            GroupImpostorOf { node: node as u32 },
+            Transform::from_translation(origin),
+            // Drawn from this frame on, before transforms propagate again.
+            GlobalTransform::from_translation(origin),
+        ))
+        .id();
+    GroupImpostor {
+        entity,
+        model: handle,
+        origin,
+        slot,
+        vertices,
     }
 }

@@ -18,7 +18,7 @@ use super::species::{GeneratedTree, tube};
 /// One tree of a group: its model, where it stands relative to the group's origin, and
 /// its model's [`TreeModel::far_first_leaves`] (computed once per model by the caller).
 #[derive(Clone, Copy, Debug)]
-pub struct GroupMember<'a> {
+pub struct GroupImpostorMember<'a> {
     /// The tree's model.
     pub model: &'a TreeModel,
     /// Model space → group space (uniform scale).
@@ -29,14 +29,14 @@ pub struct GroupMember<'a> {
 
 /// How much of its members a group model keeps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct GroupModelOptions {
+pub struct GroupImpostorOptions {
     /// Leaves kept in all (one triangle each), at least one per kept tree.
     pub leaves: u32,
     /// Trees whose stem and leaves are kept, at most.
     pub trunks: u32,
 }
 
-impl Default for GroupModelOptions {
+impl Default for GroupImpostorOptions {
     fn default() -> Self {
         Self {
             leaves: 256,
@@ -56,9 +56,9 @@ const STEM_SIDES: usize = 5;
 ///
 /// Fails like [`analyze`] does; in particular with
 /// [`TreeAnalysisError::NoTriangles`] when no member has a trunk.
-pub fn group_model(
-    members: &[GroupMember],
-    options: &GroupModelOptions,
+pub fn group_impostor_model(
+    members: &[GroupImpostorMember],
+    options: &GroupImpostorOptions,
 ) -> Result<TreeModel, TreeAnalysisError> {
     let kept = members.len().min(options.trunks.max(1) as usize);
     let leaves_each = (options.leaves as usize / kept.max(1)).max(1);
@@ -73,7 +73,7 @@ pub fn group_model(
     // Every stem reaches down to below the lowest stem's foot, so one ground plane under
     // them all cuts each stem's own root, however far apart in height the trees stand (a
     // slope, a hill); the reach lies under its tree's own ground.
-    let kept_members: Vec<&GroupMember> = (0..kept)
+    let kept_members: Vec<&GroupImpostorMember> = (0..kept)
         .map(|k| &members[k * members.len() / kept])
         .collect();
     let stems: Vec<Option<(Vec<Vec3>, Vec<f32>)>> = kept_members
@@ -260,7 +260,7 @@ mod tests {
             .collect();
         let far: Vec<Vec<u32>> = models.iter().map(TreeModel::far_first_leaves).collect();
         let text = include_str!("../../tests/data/group_members_on_a_slope.txt");
-        let members: Vec<GroupMember> = text
+        let members: Vec<GroupImpostorMember> = text
             .lines()
             .map(|line| {
                 let numbers: Vec<f32> = line
@@ -271,14 +271,14 @@ mod tests {
                     .iter()
                     .position(|m| m.rings.len() == numbers[0] as usize)
                     .unwrap();
-                GroupMember {
+                GroupImpostorMember {
                     model: &models[s],
                     transform: Affine3A::from_cols_array(&numbers[1..13].try_into().unwrap()),
                     far_first: &far[s],
                 }
             })
             .collect();
-        let group = group_model(&members, &GroupModelOptions::default()).unwrap();
+        let group = group_impostor_model(&members, &GroupImpostorOptions::default()).unwrap();
         group.validate().unwrap();
         assert_eq!(group.roots().count(), members.len());
     }
@@ -292,8 +292,8 @@ mod tests {
             .unwrap()
             .model;
         let far_first = model.far_first_leaves();
-        let members: Vec<GroupMember> = (0..40)
-            .map(|i| GroupMember {
+        let members: Vec<GroupImpostorMember> = (0..40)
+            .map(|i| GroupImpostorMember {
                 model: &model,
                 transform: Affine3A::from_scale_rotation_translation(
                     Vec3::splat(1.0 + 0.01 * i as f32),
@@ -303,11 +303,11 @@ mod tests {
                 far_first: &far_first,
             })
             .collect();
-        let options = GroupModelOptions {
+        let options = GroupImpostorOptions {
             leaves: 128,
             trunks: 16,
         };
-        let group = group_model(&members, &options).unwrap();
+        let group = group_impostor_model(&members, &options).unwrap();
         group.validate().unwrap();
         // One stem per kept tree, each its own root.
         let roots: Vec<Vec3> = group
@@ -343,7 +343,7 @@ mod tests {
     #[test]
     fn members_without_a_trunk_make_no_group() {
         assert!(matches!(
-            group_model(&[], &GroupModelOptions::default()),
+            group_impostor_model(&[], &GroupImpostorOptions::default()),
             Err(TreeAnalysisError::NoTriangles { .. })
         ));
     }

@@ -1,0 +1,77 @@
+//! [`StrategyKind::RobinHood`](crate::lod::StrategyKind::RobinHood): every object's
+//! cheapest representation paid first, the rest walked simple → complex by value, each
+//! object's search inside the walk (a remainder is only known once it has chosen).
+
+use super::{HandOut, Outcome, Strategy};
+use crate::budget::{Fit, RobinHood};
+use crate::lod::select::Selected;
+use crate::lod::value::Part;
+
+/// Robin Hood's state, kept between frames for its allocations.
+#[derive(Default)]
+pub(super) struct RobinHoodStrategy {
+    robin_hood: RobinHood,
+    /// Per object, the cost of its cheapest representation.
+    floors: Vec<f32>,
+    /// What each object chose, by object (a residue pass offers an object more time and
+    /// replaces its earlier choice).
+    choices: Vec<Selected>,
+}
+
+impl Strategy for RobinHoodStrategy {
+    fn hand_out(&mut self, hand_out: &mut HandOut) -> Outcome {
+        let HandOut {
+            search,
+            choices: draw,
+            values,
+            complexities,
+            rendering,
+            allocations,
+            tree_parts,
+            ..
+        } = hand_out;
+        let objects = search.objects;
+        self.floors.clear();
+        self.floors
+            .extend((0..objects.len()).map(|i| search.floor(i)));
+        let choices = &mut self.choices;
+        choices.clear();
+        choices.resize(objects.len(), Selected::default());
+        let stats = self.robin_hood.distribute_with(
+            values,
+            complexities,
+            &self.floors,
+            *rendering,
+            |i, given| {
+                let (chosen, mesh_level) = draw.draw(search, i, given);
+                // Only the last choice is drawn, priced and learned from.
+                choices[i] = chosen;
+                // A tree part's level: 0 at full detail, nothing more to buy.
+                let level = mesh_level.unwrap_or(u32::from(!chosen.full));
+                Fit {
+                    used: chosen.cost,
+                    level,
+                    truncated: chosen.truncated,
+                }
+            },
+            allocations,
+        );
+        let mut tree_parts = tree_parts.as_deref_mut();
+        if let Some(parts) = tree_parts.as_deref_mut() {
+            parts.clear();
+            parts.resize(search.trees.len(), Selected::default());
+        }
+        let mut outcome = Outcome::of(stats);
+        for (object, &chosen) in objects.iter().zip(choices.iter()) {
+            outcome.count(chosen);
+            if let Some(tree) = tree_parts
+                .as_deref_mut()
+                .and_then(|parts| parts.get_mut(object.index as usize))
+                && object.part != Part::Mesh
+            {
+                *tree = Selected::both(*tree, chosen);
+            }
+        }
+        outcome
+    }
+}
