@@ -66,8 +66,8 @@ use crate::tree::TreeModelsVersion;
 use draw_lists::{ChosenLists, write_draw_lists};
 use group_impostors::build_group_impostors;
 use hand_out::hand_out_time;
-use strategy::Strategies;
-use value::{FarDecisions, VisibleObjects, give_draw_lists, value_objects};
+use strategy::{Strategies, mark_needed_instances};
+use value::{FarDecisions, NeededInstances, VisibleObjects, give_draw_lists, value_objects};
 
 /// Adds the Value, Budget and `DrawLists` stages, [`FrameBudget`] and [`LodDiagnostics`].
 /// Part of [`SherwoodPlugins`](crate::SherwoodPlugins); needs the culling plugin and
@@ -97,13 +97,19 @@ impl Plugin for LodPlugin {
             .init_resource::<LodDiagnostics>()
             .init_resource::<VisibleObjects>()
             .init_resource::<FarDecisions>()
+            .init_resource::<NeededInstances>()
             .init_resource::<Strategies>()
             .init_resource::<ChosenLists>()
             .init_resource::<LadderObjects>()
             .add_systems(
                 PostUpdate,
                 (
-                    (give_draw_lists, build_group_impostors, value_objects)
+                    (
+                        give_draw_lists,
+                        build_group_impostors,
+                        mark_needed_instances,
+                        value_objects,
+                    )
                         .chain()
                         .in_set(SherwoodSystems::Value),
                     hand_out_time.in_set(SherwoodSystems::Budget),

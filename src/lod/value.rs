@@ -7,8 +7,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
 use super::select::{self, PrimitiveCosts, TreeView, VisibleLeafGroup};
-use super::strategy::Strategies;
-use super::{FrameBudget, GroupImpostors, LadderObjects, LodMode, StrategyKind};
+use super::{FrameBudget, LadderObjects, LodMode, StrategyKind};
 use crate::budget::{ValueInputs, ValueModel};
 use crate::cost::CostModel;
 use crate::culling::{CullView, ForestCulling, FrustumPlanes, InstanceVisibility};
@@ -124,9 +123,17 @@ pub(super) struct VisibleObjects {
     ladder_keyed: Vec<(f32, Object, f32)>,
     /// Value stages run (which far trees take their turn).
     value_frames: u64,
-    /// Whether the strategy asked for only some instances, and which, per instance.
-    only_needed: bool,
-    needed: Vec<bool>,
+}
+
+/// Which instances the Value stage values this frame: every visible one, or, when the
+/// strategy asks (the hierarchical one: those its last cut can open to), only the marked
+/// ones. Written before the Value stage from the strategy's last frame.
+#[derive(Resource, Default)]
+pub(super) struct NeededInstances {
+    /// Only the marked instances are valued.
+    pub(super) only_marked: bool,
+    /// Per instance of the table, whether it is needed.
+    pub(super) marked: Vec<bool>,
 }
 
 impl VisibleObjects {
@@ -297,7 +304,7 @@ fn model_infos(models: &Assets<TreeModel>, costs: &PrimitiveCosts) -> Vec<ModelI
 pub(super) fn value_objects(
     mut visible: ResMut<VisibleObjects>,
     mut far: ResMut<FarDecisions>,
-    mut strategies: ResMut<Strategies>,
+    needed: Res<NeededInstances>,
     budget: Res<FrameBudget>,
     cost_model: Res<CostModel>,
     culling: Option<Res<ForestCulling>>,
@@ -306,7 +313,6 @@ pub(super) fn value_objects(
     models: Res<Assets<TreeModel>>,
     version: Res<TreeModelsVersion>,
     mut ladders: ResMut<LadderObjects>,
-    impostors: Res<GroupImpostors>,
     mut importances_replaced: Local<bool>,
 ) {
     let start = Instant::now();
@@ -338,18 +344,10 @@ pub(super) fn value_objects(
     visible.viewport_pixels = view.viewport_pixels;
     visible.view = Some(*view);
     if let Some(culling) = culling {
-        // A strategy may value only the trees it can reach this frame (the hierarchical
-        // one: those its last cut can open to); the fixed modes draw every visible tree.
-        let time_critical = matches!(budget.mode, LodMode::Tc | LodMode::Tclod);
-        visible.only_needed = time_critical
-            && strategies.get(budget.strategy).needed_instances(
-                &culling,
-                &impostors,
-                &mut visible.needed,
-            );
         value_trees(
             visible,
             &mut far,
+            &needed,
             budget,
             &cost_model,
             &culling,
@@ -384,6 +382,7 @@ fn value_seen(budget: &FrameBudget, view: &LodView, area: f32, at: Vec3, importa
 fn value_trees(
     visible: &mut VisibleObjects,
     far: &mut FarDecisions,
+    needed: &NeededInstances,
     budget: &FrameBudget,
     cost_model: &CostModel,
     culling: &ForestCulling,
@@ -443,7 +442,7 @@ fn value_trees(
     };
     visible.keyed.clear();
     for (i, visibility) in culling.result.visibility.iter().enumerate() {
-        if visible.only_needed && !visible.needed.get(i).copied().unwrap_or(true) {
+        if needed.only_marked && !needed.marked.get(i).copied().unwrap_or(true) {
             continue;
         }
         valuer.value(i, *visibility, visible);

@@ -10,10 +10,11 @@ mod rungs;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use super::StrategyKind;
 use super::group_impostors::GroupImpostors;
 use super::search::{Choices, ObjectSearch};
 use super::select::Selected;
+use super::value::NeededInstances;
+use super::{FrameBudget, LodMode, StrategyKind};
 use crate::budget::{
     Allocation, BudgetStats, FunkhouserIncremental, FunkhouserSequin, TriangleBudget,
 };
@@ -39,6 +40,27 @@ impl Strategies {
             .or_insert_with(|| new_strategy(kind))
             .as_mut()
     }
+}
+
+/// Before the Value stage: which instances the strategy needs valued this frame, from
+/// its last frame (the fixed modes draw, so value, every visible tree).
+pub(super) fn mark_needed_instances(
+    budget: Res<FrameBudget>,
+    culling: Option<Res<ForestCulling>>,
+    impostors: Res<GroupImpostors>,
+    mut strategies: ResMut<Strategies>,
+    mut needed: ResMut<NeededInstances>,
+) {
+    let needed = &mut *needed;
+    let time_critical = matches!(budget.mode, LodMode::Tc | LodMode::Tclod);
+    needed.only_marked = time_critical
+        && culling.is_some_and(|culling| {
+            strategies.get(budget.strategy).needed_instances(
+                &culling,
+                &impostors,
+                &mut needed.marked,
+            )
+        });
 }
 
 /// The registry: one line per [`StrategyKind`].
