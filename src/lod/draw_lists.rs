@@ -17,7 +17,7 @@ pub(super) struct ChosenLists {
     /// Per visible tree ([`VisibleObjects::trees`]), its list.
     pub(super) trees: Vec<TreeDrawList>,
     /// The group impostors drawn and their lists.
-    pub(super) impostors: Vec<(Entity, TreeDrawList)>,
+    pub(super) impostors: ImpostorLists,
     /// The group impostors whose lists were written last frame.
     impostors_shown: Vec<Entity>,
     /// The trees whose lists were written non-empty last frame.
@@ -27,10 +27,37 @@ pub(super) struct ChosenLists {
     stamp: u32,
 }
 
+/// The group impostors drawn this frame and their lists; the lists of earlier frames are
+/// kept for their allocations.
+#[derive(Default)]
+pub(super) struct ImpostorLists {
+    lists: Vec<(Entity, TreeDrawList)>,
+    /// How many of `lists` are this frame's.
+    drawn: usize,
+}
+
+impl ImpostorLists {
+    /// An empty list for group impostor `entity`, drawn this frame.
+    pub(super) fn push(&mut self, entity: Entity) -> &mut TreeDrawList {
+        if self.drawn == self.lists.len() {
+            self.lists.push((entity, TreeDrawList::default()));
+        }
+        let (slot, list) = &mut self.lists[self.drawn];
+        *slot = entity;
+        list.clear();
+        self.drawn += 1;
+        list
+    }
+
+    fn drawn_mut(&mut self) -> &mut [(Entity, TreeDrawList)] {
+        &mut self.lists[..self.drawn]
+    }
+}
+
 impl ChosenLists {
     /// A fresh, empty list for each of `trees` visible trees, and no group impostor.
     pub(super) fn clear_for(&mut self, trees: usize) {
-        self.impostors.clear();
+        self.impostors.drawn = 0;
         self.trees.resize_with(trees, TreeDrawList::default);
         for list in &mut self.trees[..trees] {
             list.clear();
@@ -90,7 +117,7 @@ pub(super) fn write_draw_lists(
             list.clear();
         }
     }
-    for (entity, list_chosen) in &mut chosen.impostors {
+    for (entity, list_chosen) in chosen.impostors.drawn_mut() {
         if let Ok(mut list) = lists.get_mut(*entity) {
             core::mem::swap(&mut *list, list_chosen);
             chosen.impostors_shown.push(*entity);

@@ -10,6 +10,7 @@ mod rungs;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
+use super::draw_lists::ImpostorLists;
 use super::group_impostors::GroupImpostors;
 use super::search::{Choices, ObjectSearch};
 use super::select::Selected;
@@ -124,7 +125,7 @@ pub(super) struct Scene<'a> {
     pub(super) cut: &'a mut HierarchicalCut,
     /// The group impostors drawn this frame and their lists: empty before the hand-out
     /// (an impostor not listed draws nothing).
-    pub(super) impostor_lists: &'a mut Vec<(Entity, TreeDrawList)>,
+    pub(super) impostor_lists: &'a mut ImpostorLists,
 }
 
 /// What a hand-out drew.

@@ -115,10 +115,9 @@ impl Strategy for Hierarchical {
                     else {
                         continue;
                     };
-                    let mut list = TreeDrawList::default();
-                    let chosen = impostors.search(node as usize, fraction, None, &mut list).0;
-                    outcome.impostor_counts += g.slot.counts(&list);
-                    lists.push((g.entity, list));
+                    let list = lists.push(g.entity);
+                    let chosen = impostors.search(node as usize, fraction, None, list).0;
+                    outcome.impostor_counts += g.slot.counts(list);
                     chosen
                 }
             };
