@@ -21,6 +21,8 @@ impl Plugin for SherwoodCorePlugin {
         crate::display::build(app);
         app.init_resource::<ForestInstances>()
             .register_type::<LodView>()
+            .register_type::<crate::instance::TreeInstance>()
+            .register_type::<ForestInstances>()
             .register_type::<crate::view::BudgetView>()
             .add_systems(
                 PostUpdate,

@@ -21,8 +21,12 @@ use crate::tree::TreeModel;
 
 /// One tree in the world. Spawn it with a `Transform` (uniform scale); the Sherwood stages
 /// cull it, give it time and draw it, whether an ecosystem spawned it or you did
-/// ([`TreeInstance::new`]).
-#[derive(Component, Clone, Debug)]
+/// ([`TreeInstance::new`]). It requires a `Transform` (and, with the `render` feature, a
+/// `Visibility`), inserted at their defaults when missing.
+#[derive(Component, Clone, Debug, Reflect)]
+#[reflect(Component, Debug)]
+#[cfg_attr(feature = "render", require(Transform, Visibility))]
+#[cfg_attr(not(feature = "render"), require(Transform))]
 pub struct TreeInstance {
     /// The forest entity of the ecosystem that spawned it; `Entity::PLACEHOLDER` for a
     /// tree placed by hand.
@@ -80,7 +84,8 @@ pub struct FixedDrawList;
 /// `entities[i]`, placed by `transforms[i]`, of model `model_ids[models[i]]`. Every
 /// per-instance array of the later stages (culling's result, the wind's offsets, the
 /// level of detail's placement) is indexed the same way.
-#[derive(Resource, Debug, Default)]
+#[derive(Resource, Debug, Default, Reflect)]
+#[reflect(Resource, Debug)]
 pub struct ForestInstances {
     /// The instance entities.
     pub entities: Vec<Entity>,
@@ -94,11 +99,17 @@ pub struct ForestInstances {
     pub scales: Vec<f32>,
     /// Their wind setup ([`TreeInstance::motion`]).
     pub motions: Vec<u32>,
+    #[reflect(ignore)]
     index: EntityHashMap<u32>,
+    #[reflect(ignore)]
     moved: Vec<u32>,
+    #[reflect(ignore)]
     edits: LayoutEdits,
+    #[reflect(ignore)]
     layout_version: u64,
+    #[reflect(ignore)]
     transforms_version: u64,
+    #[reflect(ignore)]
     models_version: u64,
 }
 
@@ -463,6 +474,26 @@ mod tests {
             assert_eq!(
                 table.entities.len(),
                 old.len() - felled.len() + planted.len()
+            );
+        }
+    }
+
+    #[test]
+    fn a_tree_instance_brings_its_transform_and_is_reflected() {
+        let mut app = App::new();
+        app.add_plugins(crate::SherwoodCorePlugin);
+        let tree = app
+            .world_mut()
+            .spawn(tree(1))
+            .id();
+        assert!(app.world().get::<Transform>(tree).is_some());
+        #[cfg(feature = "render")]
+        assert!(app.world().get::<Visibility>(tree).is_some());
+        let registry = app.world().resource::<AppTypeRegistry>().read();
+        for name in ["TreeInstance", "ForestInstances"] {
+            assert!(
+                registry.get_with_short_type_path(name).is_some(),
+                "{name} is not registered"
             );
         }
     }

@@ -62,7 +62,8 @@ impl AssetLoader for EcosystemLoader {
 /// A malformed edit fails to load, is logged with its line, column and field, and leaves
 /// the previous forest standing. Despawning it despawns its trees and terrain
 /// ([`ForestMembers`]).
-#[derive(Component, Clone, Debug)]
+#[derive(Component, Clone, Debug, Reflect)]
+#[reflect(Component, Debug)]
 #[require(ForestState)]
 pub struct Forest(pub Handle<Ecosystem>);
 
@@ -123,6 +124,7 @@ impl Plugin for EcosystemPlugin {
             "Bevy's AssetPlugin",
         );
         app.init_asset::<Ecosystem>()
+            .register_type::<Forest>()
             .register_asset_loader(EcosystemLoader)
             .add_systems(Update, spawn_forests);
         #[cfg(feature = "render")]
