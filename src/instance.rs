@@ -482,10 +482,7 @@ mod tests {
     fn a_tree_instance_brings_its_transform_and_is_reflected() {
         let mut app = App::new();
         app.add_plugins(crate::SherwoodCorePlugin);
-        let tree = app
-            .world_mut()
-            .spawn(tree(1))
-            .id();
+        let tree = app.world_mut().spawn(tree(1)).id();
         assert!(app.world().get::<Transform>(tree).is_some());
         #[cfg(feature = "render")]
         assert!(app.world().get::<Visibility>(tree).is_some());
