@@ -15,7 +15,7 @@ use super::strategy::{self, HandOut, Outcome, Scene, Strategies};
 use super::value::{FarDecisions, VisibleObjects};
 use super::{
     AppMeshLoad, BenefitReport, FrameBudget, HierarchicalCut, LadderEntry, LadderObjects,
-    LodDiagnostics, LodMode, StrategyKind, TARGET_WARNING_SECS,
+    LodDiagnostics, StrategyKind, TARGET_WARNING_SECS,
 };
 use crate::budget::{Allocation, oracle};
 use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction, MeasuredPacing};
@@ -32,7 +32,7 @@ pub(super) struct Pacing<'w> {
     vsync: Option<Res<'w, VsyncSettings>>,
 }
 
-/// What the hierarchical strategy reads beside the objects.
+/// The tree models, and what the hierarchical strategy reads beside the objects.
 #[derive(SystemParam)]
 pub(super) struct Boxes<'w> {
     impostors: Res<'w, GroupImpostors>,
@@ -63,7 +63,8 @@ struct FrameTimes {
     fixed: f32,
     app_meshes: Selected,
     app_mesh_draws: u32,
-    /// What the work is aimed at.
+    /// The target, and what the work is aimed at.
+    target: f32,
     aim: super::aim::Aim,
     /// The rendering time left for the trees and ladders.
     rendering: f32,
@@ -83,8 +84,9 @@ fn frame_times(
     // This frame's logic so far is known: only the rest of the update is predicted.
     let logic_so_far = clock.elapsed();
     let logic = logic_so_far + cost_model.logic_after_budget(visible_instances);
+    let target = budget.target_ms.max(0.0) / 1000.0;
     let aim = super::aim::aim(
-        budget.target_ms.max(0.0) / 1000.0,
+        target,
         budget.goal,
         pacing.display.as_deref(),
         pacing.measured.as_deref(),
@@ -110,14 +112,11 @@ fn frame_times(
         fixed,
         app_meshes,
         app_mesh_draws: app_mesh_load.draws,
+        target,
         aim,
         rendering: (available - fixed - app_meshes.cost).max(0.0),
-        target_below_logic: available <= 0.0 && is_time_critical(budget.mode),
+        target_below_logic: available <= 0.0 && budget.mode.is_time_critical(),
     }
-}
-
-fn is_time_critical(mode: LodMode) -> bool {
-    matches!(mode, LodMode::Tc | LodMode::Tclod)
 }
 
 impl BudgetState {
@@ -161,13 +160,12 @@ pub(super) fn hand_out_time(
     let costs = cost_model
         .primitive_costs()
         .within_viewport(visible.viewport_pixels);
-    let visible_instances = (visible.trees.len() + visible.held.len()) as u32;
     let times = frame_times(
         &budget,
         &cost_model,
         &costs,
         &clock,
-        visible_instances,
+        visible.instances_in_view(),
         ladders.app_meshes,
         &pacing,
     );
@@ -204,7 +202,7 @@ pub(super) fn hand_out_time(
             impostor_lists,
         },
     };
-    let time_critical = is_time_critical(budget.mode);
+    let time_critical = budget.mode.is_time_critical();
     let outcome = if time_critical {
         strategies.get(budget.strategy).hand_out(&mut hand_out)
     } else {
@@ -249,7 +247,7 @@ fn object_search<'a>(
     ladders: &'a [LadderEntry],
     ladder_triangles: &'a [u32],
 ) -> ObjectSearch<'a> {
-    let (trunk, leaves) = search::methods(budget.mode, budget);
+    let (trunk, leaves) = search::methods(budget);
     ObjectSearch {
         objects: &visible.objects,
         trees: &visible.trees,
@@ -297,7 +295,7 @@ impl Selection {
             drawn: Selected::both(outcome.drawn, visible.held_parts),
             predicted: outcome.stats.used + visible.held_parts.cost,
             counts,
-            visible_instances: (visible.trees.len() + visible.held.len()) as u32,
+            visible_instances: visible.instances_in_view(),
             trees_drawn: lists[..visible.trees.len()]
                 .iter()
                 .filter(|list| !list.is_empty())
@@ -405,8 +403,7 @@ fn frame_diagnostics(
     selection: &Selection,
     priced: &Priced,
 ) -> LodDiagnostics {
-    let target = budget.target_ms.max(0.0) / 1000.0;
-    let shown = super::aim::shown(cost_model.last_learned(), target, times.aim.period);
+    let shown = super::aim::shown(cost_model.last_learned(), times.target, times.aim.period);
     let measured = cost_model.last_learned().copied().unwrap_or_default();
     let stats = &outcome.stats;
     let ms = |seconds: f32| seconds * 1000.0;

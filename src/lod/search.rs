@@ -47,10 +47,10 @@ pub(super) enum TrunkMethod {
     Static(PixelRange),
 }
 
-/// The trunk and leaf methods of `mode`; in [`LodMode::Unlimited`] a search given
-/// [`FULL_DETAIL_TIME`] or more draws everything.
-pub(super) fn methods(mode: LodMode, budget: &FrameBudget) -> (TrunkMethod, LeafMethod) {
-    match mode {
+/// The trunk and leaf methods of the budget's mode; in [`LodMode::Unlimited`] a search
+/// given [`FULL_DETAIL_TIME`] or more draws everything.
+pub(super) fn methods(budget: &FrameBudget) -> (TrunkMethod, LeafMethod) {
+    match budget.mode {
         LodMode::Tclod => (
             TrunkMethod::Tclod(budget.line_widths),
             LeafMethod::Tclod(budget.point_sizes),

@@ -22,6 +22,14 @@ pub enum LodMode {
     Unlimited,
 }
 
+impl LodMode {
+    /// Whether the mode hands out a rendering time ([`Tclod`](Self::Tclod),
+    /// [`Tc`](Self::Tc)); the others draw every object by a fixed rule.
+    pub fn is_time_critical(self) -> bool {
+        matches!(self, Self::Tclod | Self::Tc)
+    }
+}
+
 /// Which strategy hands out the rendering time in the time-critical modes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
 pub enum StrategyKind {

@@ -141,6 +141,11 @@ impl VisibleObjects {
     pub(super) fn instances(&self) -> usize {
         self.placed.len()
     }
+
+    /// The instances in view this frame: the visible trees and the held far ones.
+    pub(super) fn instances_in_view(&self) -> u32 {
+        (self.trees.len() + self.held.len()) as u32
+    }
 }
 
 /// What [`FarDecisions`] is valid for.
@@ -155,8 +160,8 @@ struct DecidedKey {
 
 /// Per instance, the last decision of a far tree (whole tree at one depth): what it costs
 /// and draws (`None`: none to keep), for [`FrameBudget::far_refresh`]. Written by the
-/// Budget stage, read by the next frame's Value stage: the one place the Value stage reads
-/// a later stage's result.
+/// Budget stage, read by the next frame's Value stage (with [`NeededInstances`], the two
+/// places the Value stage reads a later stage's result).
 #[derive(Resource, Default)]
 pub(super) struct FarDecisions {
     pub(super) decided: Vec<Option<(select::Selected, PrimitiveCounts)>>,
@@ -416,9 +421,8 @@ fn value_trees(
     visible.held_parts = select::Selected::default();
     visible.held_counts = PrimitiveCounts::default();
     let refresh = u64::from(budget.far_refresh.max(1));
-    let holding = refresh > 1
-        && budget.strategy == StrategyKind::RobinHood
-        && matches!(budget.mode, LodMode::Tc | LodMode::Tclod);
+    let holding =
+        refresh > 1 && budget.strategy == StrategyKind::RobinHood && budget.mode.is_time_critical();
     far.follow(
         holding.then_some(DecidedKey {
             layout: table.layout_version(),
@@ -602,7 +606,7 @@ fn order_simple_to_complex(visible: &mut VisibleObjects) {
 /// The mesh-ladder entities in view, valued like the trees and merged into the simple →
 /// complex order (their complexity: their best level's calibrated cost).
 fn value_ladders(
-    frame: &mut VisibleObjects,
+    visible: &mut VisibleObjects,
     budget: &FrameBudget,
     cost_model: &CostModel,
     view: &LodView,
@@ -615,7 +619,7 @@ fn value_ladders(
         return;
     }
     let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
-    let keyed = &mut frame.ladder_keyed;
+    let keyed = &mut visible.ladder_keyed;
     keyed.clear();
     for (e, entry) in ladders.entries.iter().enumerate() {
         let sphere = BoundingSphere {
@@ -640,26 +644,26 @@ fn value_ladders(
     }
     keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
     // Merge with the trees' objects, already in order: stable, trees first on ties.
-    let trees = frame.objects.len();
+    let trees = visible.objects.len();
     let (objects, complexities, values) = (
-        core::mem::take(&mut frame.objects),
-        core::mem::take(&mut frame.complexities),
-        core::mem::take(&mut frame.values),
+        core::mem::take(&mut visible.objects),
+        core::mem::take(&mut visible.complexities),
+        core::mem::take(&mut visible.values),
     );
-    frame.objects.reserve(trees + keyed.len());
+    visible.objects.reserve(trees + keyed.len());
     let (mut t, mut l) = (0, 0);
     while t < trees || l < keyed.len() {
         let tree_first = l == keyed.len() || (t < trees && complexities[t] <= keyed[l].0);
         if tree_first {
-            frame.objects.push(objects[t]);
-            frame.complexities.push(complexities[t]);
-            frame.values.push(values[t]);
+            visible.objects.push(objects[t]);
+            visible.complexities.push(complexities[t]);
+            visible.values.push(values[t]);
             t += 1;
         } else {
             let (complexity, object, value) = keyed[l];
-            frame.objects.push(object);
-            frame.complexities.push(complexity);
-            frame.values.push(value);
+            visible.objects.push(object);
+            visible.complexities.push(complexity);
+            visible.values.push(value);
             l += 1;
         }
     }

@@ -15,7 +15,7 @@ use super::group_impostors::GroupImpostors;
 use super::search::{Choices, ObjectSearch};
 use super::select::Selected;
 use super::value::NeededInstances;
-use super::{FrameBudget, LodMode, StrategyKind};
+use super::{FrameBudget, StrategyKind};
 use crate::budget::{
     Allocation, BudgetStats, FunkhouserIncremental, FunkhouserSequin, TriangleBudget,
 };
@@ -53,8 +53,7 @@ pub(super) fn mark_needed_instances(
     mut needed: ResMut<NeededInstances>,
 ) {
     let needed = &mut *needed;
-    let time_critical = matches!(budget.mode, LodMode::Tc | LodMode::Tclod);
-    needed.only_marked = time_critical
+    needed.only_marked = budget.mode.is_time_critical()
         && culling.is_some_and(|culling| {
             strategies.get(budget.strategy).needed_instances(
                 &culling,

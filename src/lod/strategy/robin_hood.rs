@@ -56,20 +56,18 @@ impl Strategy for RobinHoodStrategy {
             },
             allocations,
         );
-        let mut tree_parts = tree_parts.as_deref_mut();
+        let mut outcome = Outcome::of(stats);
+        for &chosen in choices.iter() {
+            outcome.count(chosen);
+        }
         if let Some(parts) = tree_parts.as_deref_mut() {
             parts.clear();
             parts.resize(search.trees.len(), Selected::default());
-        }
-        let mut outcome = Outcome::of(stats);
-        for (object, &chosen) in objects.iter().zip(choices.iter()) {
-            outcome.count(chosen);
-            if let Some(tree) = tree_parts
-                .as_deref_mut()
-                .and_then(|parts| parts.get_mut(object.index as usize))
-                && object.part != Part::Mesh
-            {
-                *tree = Selected::both(*tree, chosen);
+            for (object, &chosen) in objects.iter().zip(choices.iter()) {
+                if object.part != Part::Mesh {
+                    let tree = &mut parts[object.index as usize];
+                    *tree = Selected::both(*tree, chosen);
+                }
             }
         }
         outcome
