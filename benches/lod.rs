@@ -17,8 +17,7 @@ use bevy_sherwood::lod::{GroupImpostors, StrategyKind};
 use bevy_sherwood::prelude::*;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 
-#[path = "../tests/common/mod.rs"]
-mod common;
+use bevy_sherwood::testing as common;
 
 fn forest_app(trees: u32, strategy: StrategyKind, far_refresh: u32) -> (App, f32) {
     let (mut app, size) = common::forest_of(trees);

@@ -22,14 +22,9 @@ use std::time::Duration;
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy_sherwood::culling::CullShape;
-use bevy_sherwood::wind::{RingOffsetTable, SpringSet, WindSettings, WindStats};
-use bevy_sherwood::wind::{WindRig, associate, moved_bounds, ring_offsets};
+use bevy_sherwood::testing::{self as common, workloads};
+use bevy_sherwood::wind::{SpringSet, WindSettings, WindStats};
 use criterion::{Criterion, criterion_group, criterion_main};
-use std::hint::black_box;
-
-#[path = "../tests/common/mod.rs"]
-mod common;
 
 const TREES: u32 = 2_000;
 
@@ -61,37 +56,15 @@ fn per_tree(c: &mut Criterion) {
     ))
     .unwrap();
     let set = SpringSet::from_ron_str(&set_text).unwrap();
-    let springs = [
-        Vec3::new(0.08, 0.0, 0.03),
-        Vec3::new(0.06, 0.0, 0.01),
-        Vec3::new(0.04, 0.0, 0.02),
-    ];
     let mut group = c.benchmark_group("wind/per_tree");
     for name in ["slender", "broad", "grand"] {
         let model = common::species(name);
-        let rig = WindRig::new(&model, &associate(&model, &set.rules, springs.len()));
-        let mut offsets = Vec::new();
-        let mut shape = CullShape::from(&model);
         println!("{name}: {} rings", model.rings.len());
-        // Every movement applied, and the stage's threshold of half a pixel (a centimetre
-        // or so at 50 m), under which movements accumulate.
-        for (case, threshold) in [("ring_offsets", 0.0), ("ring_offsets_thresholded", 0.01)] {
-            group.bench_function(format!("{name}/{case}"), |b| {
-                b.iter(|| {
-                    ring_offsets(
-                        &rig,
-                        black_box(&springs),
-                        Quat::from_rotation_y(0.3),
-                        1.1,
-                        threshold,
-                        &mut offsets,
-                    );
-                });
+        for mut workload in workloads::wind_per_tree(&model, &set.rules) {
+            group.bench_function(format!("{name}/{}", workload.name), |b| {
+                b.iter(|| workload.run());
             });
         }
-        group.bench_function(format!("{name}/moved_bounds"), |b| {
-            b.iter(|| moved_bounds(&rig, black_box(&offsets), &mut shape));
-        });
     }
     group.finish();
 }
@@ -135,7 +108,7 @@ fn wind(c: &mut Criterion) {
             updated += frame.updated;
             ms += frame.update_ms;
         }
-        let rings = app.world().resource::<RingOffsetTable>().rings_held();
+        let rings = app.world().resource::<WindStats>().rings_held;
         println!(
             "{name}: {} candidates, {} moved ({} updated, {} held), {} skipped; {rings} rings held; \
              {:.2} µs per updated tree, {} updated per frame on average",

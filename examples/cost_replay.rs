@@ -17,7 +17,6 @@ use std::path::Path;
 
 use bevy_sherwood::cost::{
     Calibration, CostModel, FamilyTimes, FrameOverlap, FramePrediction, FrameSample, LearningRates,
-    read_calibration,
 };
 use record::Record;
 
@@ -38,7 +37,7 @@ fn run() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut it = args.iter();
     let record = it.next().ok_or("no record")?;
-    let mut calibration = read_calibration(Path::new(concat!(
+    let mut calibration = read_calibration_file(Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/assets/calibration/llvmpipe-llvm-15-0-6-256-bits.calibration.ron"
     )))
@@ -48,7 +47,7 @@ fn run() -> Result<(), String> {
         let mut value = || it.next().ok_or(format!("{flag} needs a value"));
         let number = |v: &String| v.parse::<f32>().map_err(|e| format!("{flag}: {e}"));
         match flag.as_str() {
-            "--calibration" => calibration = read_calibration(Path::new(value()?))?,
+            "--calibration" => calibration = read_calibration_file(Path::new(value()?))?,
             "--scale" => scale = number(value()?)?,
             "--speed-seconds" => rates.speed_seconds = number(value()?)?,
             "--costs-seconds" => rates.costs_seconds = number(value()?)?,
@@ -137,4 +136,9 @@ fn run() -> Result<(), String> {
     println!();
     println!("learned: {:?}", model.learned());
     Ok(())
+}
+
+fn read_calibration_file(path: &Path) -> Result<Calibration, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    Calibration::from_ron_str(&text).map_err(|e| format!("{}: {e}", path.display()))
 }

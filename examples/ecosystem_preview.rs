@@ -83,7 +83,7 @@ fn capture(
     let ready = forests
         .iter()
         .any(|f| !f.instances.is_empty() && drawn.instances as usize == f.instances.len());
-    if !ready || culling.hierarchy.is_none() || culling.models_loading() > 0 {
+    if !ready || !culling.is_built() || culling.models_loading() > 0 {
         return;
     }
     preview.frames += 1;

@@ -31,10 +31,10 @@ use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
-use bevy_sherwood::budget::deadline;
 use bevy_sherwood::cost::{
     CalibrationChoice, CostModel, CostSettings, FrameBound, FrameClock, FrameSample, FrameSamples,
 };
+use bevy_sherwood::display as deadline;
 use bevy_sherwood::draw::Shading;
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestState, ForestTerrain};
 use bevy_sherwood::lod::{BenefitReport, StrategyKind};

@@ -25,8 +25,8 @@
 
 use bevy::prelude::*;
 use bevy::window::WindowResolution;
-use bevy_sherwood::budget::deadline;
 use bevy_sherwood::cost::CostModel;
+use bevy_sherwood::display as deadline;
 use bevy_sherwood::prelude::*;
 
 #[derive(Resource, Clone, Debug)]

@@ -1,12 +1,12 @@
 //! What the display does with a finished frame: whether it waits for the vertical blank
 //! (vsync), and how long a refresh period is. The Budget stage aims each frame's work at
-//! the vertical blank its target falls on ([`budget::deadline`](crate::budget::deadline));
+//! the vertical blank its target falls on;
 //! what is *measured* of a frame never depends on it (the cost model always learns the
 //! work, not the wait).
 //!
 //! By default ([`VsyncMode::FromWindow`]) the budget believes what the frames show: frames
 //! are paced when most of them wait for the display (or for a pacer), at the period their
-//! intervals follow ([`MeasuredPacing`](crate::cost::MeasuredPacing)). [`DisplayTiming`]
+//! intervals follow (`MeasuredPacing`). [`DisplayTiming`]
 //! says what the primary window claims — Bevy's `PresentMode::AutoVsync` (the default),
 //! `Fifo` and `FifoRelaxed` wait, the others do not; the period is the refresh rate of the
 //! window's monitor (or the primary monitor's) — and the measured period is snapped to the
@@ -17,6 +17,8 @@
 //! app) behave like one, for measuring what a player with vsync would see.
 
 use bevy::prelude::*;
+
+pub use crate::budget::deadline::{allowed_periods, periods_taken};
 
 /// Whether frames are paced by a vertical blank, and how many may miss it.
 /// Changes take effect on the next frame.
@@ -43,7 +45,7 @@ impl Default for VsyncSettings {
 /// Where the display's pacing comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Reflect)]
 pub enum VsyncMode {
-    /// As the frames show it ([`MeasuredPacing`](crate::cost::MeasuredPacing)): paced
+    /// As the frames show it (`MeasuredPacing`): paced
     /// when most recent frames waited for the display or a pacer, at the period their
     /// intervals follow, snapped to the monitor's when it fits.
     #[default]

@@ -4,11 +4,11 @@
 //!
 //! [`ForestInstances`] is kept by one system at the head of the frame
 //! ([`SherwoodSystems::Instances`](crate::schedule::SherwoodSystems::Instances)): a tree
-//! spawned or despawned changes the layout (and [`ForestInstances::layout_version`]) by
+//! spawned or despawned changes the layout (and `ForestInstances::layout_version`) by
 //! an edit the later stages replay on their own per-instance state
-//! ([`ForestInstances::edits_since`]), so that planting one tree costs them one tree, not
+//! (`ForestInstances::edits_since`), so that planting one tree costs them one tree, not
 //! the forest; a tree whose `GlobalTransform` changed keeps its index and is listed in
-//! [`ForestInstances::moved`] for that frame. A tree with [`FixedDrawList`] stays out: it
+//! `ForestInstances::moved` for that frame. A tree with [`FixedDrawList`] stays out: it
 //! draws the list it was given.
 
 use std::ops::Range;
@@ -120,7 +120,7 @@ pub struct ForestInstances {
 /// ([`apply`](Self::apply)) indexes it like the new table; every other instance keeps its
 /// index.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct LayoutEdits {
+pub(crate) struct LayoutEdits {
     /// The layout version the edits start from.
     from: u64,
     removed: Vec<u32>,
@@ -142,34 +142,29 @@ impl LayoutEdits {
     }
 
     /// The indices removed, in the order they were (each by swap-remove).
-    pub fn removed(&self) -> &[u32] {
+    pub(crate) fn removed(&self) -> &[u32] {
         &self.removed
     }
 
     /// The indices of the instances added (at the end of the new table).
-    pub fn added(&self) -> Range<usize> {
+    pub(crate) fn added(&self) -> Range<usize> {
         self.added.start as usize..self.added.end as usize
     }
 
     /// The models that joined [`ForestInstances::model_ids`] (at its end; none leave it by
     /// an edit).
-    pub fn new_models(&self) -> Range<usize> {
+    pub(crate) fn new_models(&self) -> Range<usize> {
         self.new_models.start as usize..self.new_models.end as usize
     }
 
     /// How many instances were removed and added.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.removed.len() + self.added().len()
-    }
-
-    /// Whether nothing was removed or added.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
     }
 
     /// Replays the edits on `items`, indexed like the old table: swap-removes the removed
     /// and pushes `new(i)` for each added index `i`.
-    pub fn apply<T>(&self, items: &mut Vec<T>, mut new: impl FnMut(usize) -> T) {
+    pub(crate) fn apply<T>(&self, items: &mut Vec<T>, mut new: impl FnMut(usize) -> T) {
         swap_remove_each(items, &self.removed);
         for i in self.added() {
             items.push(new(i));
@@ -190,32 +185,32 @@ fn swap_remove_each<T>(items: &mut Vec<T>, removed: &[u32]) {
 impl ForestInstances {
     /// Changes whenever an instance was added or removed (or its model changed): a
     /// per-instance array kept for an older version is indexed otherwise.
-    pub fn layout_version(&self) -> u64 {
+    pub(crate) fn layout_version(&self) -> u64 {
         self.layout_version
     }
 
     /// How to bring per-instance state kept for layout `version` to this one, when it is
     /// the previous layout (otherwise, or after a new layout, `None`: rebuild from the
     /// table).
-    pub fn edits_since(&self, version: u64) -> Option<&LayoutEdits> {
+    pub(crate) fn edits_since(&self, version: u64) -> Option<&LayoutEdits> {
         (version.wrapping_add(1) == self.layout_version && self.edits.from == version)
             .then_some(&self.edits)
     }
 
     /// Changes whenever one of [`model_ids`](Self::model_ids) was loaded, changed or
     /// removed (not when a model no instance uses did, such as a group impostor's).
-    pub fn models_version(&self) -> u64 {
+    pub(crate) fn models_version(&self) -> u64 {
         self.models_version
     }
 
     /// Changes whenever an instance moved (or the layout changed).
-    pub fn transforms_version(&self) -> u64 {
+    pub(crate) fn transforms_version(&self) -> u64 {
         self.transforms_version
     }
 
     /// The instances whose transform changed this frame, in this frame's layout
     /// (ascending; an instance added this frame is not listed).
-    pub fn moved(&self) -> &[u32] {
+    pub(crate) fn moved(&self) -> &[u32] {
         &self.moved
     }
 
@@ -230,12 +225,12 @@ impl ForestInstances {
     }
 
     /// The index of `entity`, if it is in the table.
-    pub fn index_of(&self, entity: Entity) -> Option<u32> {
+    pub(crate) fn index_of(&self, entity: Entity) -> Option<u32> {
         self.index.get(&entity).copied()
     }
 
     /// The model of instance `i`.
-    pub fn model_id(&self, i: usize) -> Option<AssetId<TreeModel>> {
+    pub(crate) fn model_id(&self, i: usize) -> Option<AssetId<TreeModel>> {
         self.model_ids.get(*self.models.get(i)? as usize).copied()
     }
 
@@ -297,13 +292,13 @@ type Tracked = (With<TreeInstance>, Without<FixedDrawList>);
 /// The farthest a tree may stand from the origin on any axis, metres: past it an `f32`
 /// position is coarser than a few centimetres, and one tree that far would stretch the
 /// culling hierarchy over every other.
-pub const MAX_TREE_COORDINATE: f32 = 1.0e6;
+pub(crate) const MAX_TREE_COORDINATE: f32 = 1.0e6;
 
 /// Whether a tree at `transform` with `scale` can be culled and drawn: a finite
 /// transform within [`MAX_TREE_COORDINATE`] of the origin and a positive, finite scale.
 /// Others (a NaN from a physics step, a tree sent to infinity) stay out of the instance
 /// table, with a warning, until they are placeable again.
-pub fn placeable(transform: &Affine3A, scale: f32) -> bool {
+pub(crate) fn placeable(transform: &Affine3A, scale: f32) -> bool {
     transform.is_finite()
         && transform.translation.abs().max_element() <= MAX_TREE_COORDINATE
         && scale.is_finite()

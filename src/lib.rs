@@ -1,7 +1,7 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
-pub mod budget;
+pub(crate) mod budget;
 pub mod cost;
 pub mod culling;
 pub mod display;
@@ -13,7 +13,8 @@ pub mod ladder;
 pub mod lod;
 #[cfg(feature = "render")]
 pub mod render;
-pub mod schedule;
+#[cfg(any(test, feature = "testing"))]
+pub mod testing;
 pub mod tree;
 pub mod view;
 pub mod wind;
@@ -21,6 +22,9 @@ pub mod wind;
 mod core_plugin;
 mod rng;
 mod ron_file;
+mod schedule;
+#[cfg(test)]
+mod tests;
 
 pub use core_plugin::SherwoodCorePlugin;
 pub use ron_file::FieldError;
@@ -28,10 +32,9 @@ pub use schedule::SherwoodSystems;
 
 use bevy::app::{PluginGroup, PluginGroupBuilder};
 
-/// What an app author uses: `use bevy_sherwood::prelude::*;`. The algorithms themselves
-/// (strategies, searches, the cost filter) stay in their modules, e.g. [`budget`].
+/// What an app author uses: `use bevy_sherwood::prelude::*;`. Settings and reports
+/// beyond these are in their stages' modules ([`cost`], [`wind`], …).
 pub mod prelude {
-    pub use crate::budget::ValueFunction;
     pub use crate::cost::{CalibrationChoice, CostModel, CostPlugin, CostSettings};
     pub use crate::culling::{CullingDebug, CullingPlugin};
     #[cfg(feature = "render")]
@@ -45,6 +48,7 @@ pub mod prelude {
         LadderDiagnostics, LadderFromLodNames, LadderImportance, LadderPlugin, LadderSettings,
         LodLadder, generate_ladder,
     };
+    pub use crate::lod::ValueFunction;
     pub use crate::lod::{
         FrameBudget, FrameGoal, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin,
         StrategyKind,

@@ -26,13 +26,13 @@ pub struct LodView {
 
 impl LodView {
     /// Depth of `point` along the viewing direction.
-    pub fn depth(&self, point: Vec3) -> f32 {
+    pub(crate) fn depth(&self, point: Vec3) -> f32 {
         (point - self.position).dot(self.forward)
     }
 
     /// The pixels a sphere covers on screen: its projected disc, at most the viewport (a
     /// sphere around the eye covers what a sphere touching it would).
-    pub fn sphere_pixels(&self, center: Vec3, radius: f32) -> f32 {
+    pub(crate) fn sphere_pixels(&self, center: Vec3, radius: f32) -> f32 {
         if !(radius > 0.0 && radius.is_finite()) {
             return 0.0;
         }
@@ -47,7 +47,7 @@ impl LodView {
     }
 
     /// The view's projection, for the pixel-driven searches.
-    pub fn projection(&self) -> Projection {
+    pub(crate) fn projection(&self) -> Projection {
         Projection {
             focal_pixels: self.focal_pixels,
         }

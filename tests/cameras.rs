@@ -4,9 +4,8 @@
 //! another camera. Run with `cargo test --features gpu-tests`.
 #![cfg(feature = "gpu-tests")]
 
-mod common;
-#[path = "../examples/support/windowless.rs"]
-mod windowless;
+use bevy_sherwood::testing as common;
+use bevy_sherwood::testing as windowless;
 
 use std::sync::Mutex;
 
@@ -52,8 +51,13 @@ fn scene(spawn: impl FnOnce(&mut World, f32)) -> Seen {
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     let mut app = App::new();
-    app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
-        .add_plugins(SherwoodPlugins);
+    app.add_plugins(
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        )
+        .disable::<LogPlugin>(),
+    )
+    .add_plugins(SherwoodPlugins);
     windowless::finish_plugins(&mut app);
     {
         let world = app.world_mut();

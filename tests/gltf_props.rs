@@ -3,8 +3,7 @@
 //! Run with `cargo test --features gpu-tests`.
 #![cfg(feature = "gpu-tests")]
 
-#[path = "../examples/support/windowless.rs"]
-mod windowless;
+use bevy_sherwood::testing as windowless;
 
 use bevy::log::LogPlugin;
 use bevy::prelude::*;
@@ -14,8 +13,13 @@ use bevy_sherwood::prelude::*;
 #[test]
 fn rocks_named_lod_in_a_gltf_scene_become_ladders_in_the_budget() {
     let mut app = App::new();
-    app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
-        .add_plugins(SherwoodPlugins);
+    app.add_plugins(
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        )
+        .disable::<LogPlugin>(),
+    )
+    .add_plugins(SherwoodPlugins);
     windowless::finish_plugins(&mut app);
     let world = app.world_mut();
     let scene = world

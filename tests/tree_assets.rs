@@ -1,7 +1,7 @@
 //! Tree assets: loading species and saved models through Bevy's asset server, and the
 //! saved formats' round trips and errors.
 
-mod common;
+use bevy_sherwood::testing as common;
 
 use std::path::PathBuf;
 

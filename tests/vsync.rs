@@ -7,9 +7,8 @@
 //! `cargo test --features gpu-tests`.
 #![cfg(feature = "gpu-tests")]
 
-mod common;
-#[path = "../examples/support/windowless.rs"]
-mod windowless;
+use bevy_sherwood::testing as common;
+use bevy_sherwood::testing as windowless;
 
 use std::time::{Duration, Instant};
 
@@ -84,8 +83,13 @@ const IDLE: Duration = Duration::from_millis(40);
 
 fn run(pacing: Pacing) -> Run {
     let mut app = App::new();
-    app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
-        .add_plugins(SherwoodPlugins);
+    app.add_plugins(
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        )
+        .disable::<LogPlugin>(),
+    )
+    .add_plugins(SherwoodPlugins);
     if pacing == Pacing::Vsync {
         app.add_plugins(EmulatedVsyncPlugin {
             refresh_hz: 1.0 / PERIOD,

@@ -31,7 +31,7 @@ pub fn allowed_periods(target: f32, period: f32) -> u32 {
 
 /// The vertical blank a frame with `target` seconds must make: [`allowed_periods`] ×
 /// `period`.
-pub fn vblank_deadline(target: f32, period: f32) -> f32 {
+pub(crate) fn vblank_deadline(target: f32, period: f32) -> f32 {
     allowed_periods(target, period) as f32 * period
 }
 
@@ -53,7 +53,7 @@ pub fn periods_taken(interval: f32, period: f32) -> u32 {
 /// A period that is a fraction of the true one (60 Hz said, 20 Hz shown) gives the same
 /// aim wherever the target sits at or below a true vertical blank by more than the
 /// margin: the deadline on the finer grid is then the same vertical blank.
-pub fn work_target(target: f32, period: Option<f32>, spread_factor: f32) -> f32 {
+pub(crate) fn work_target(target: f32, period: Option<f32>, spread_factor: f32) -> f32 {
     let target = if target.is_finite() {
         target.max(0.0)
     } else {
@@ -75,7 +75,7 @@ pub fn work_target(target: f32, period: Option<f32>, spread_factor: f32) -> f32 
 /// at that share) take longer than `slack × target`: `slack × target / spread_factor`.
 /// `slack` is taken within 1 to 4 (1 when not finite); a factor that is not finite and
 /// positive counts as 1; never negative, 0 for a target that is not finite.
-pub fn tail_target(target: f32, slack: f32, spread_factor: f32) -> f32 {
+pub(crate) fn tail_target(target: f32, slack: f32, spread_factor: f32) -> f32 {
     if !target.is_finite() {
         return 0.0;
     }
@@ -93,11 +93,11 @@ pub fn tail_target(target: f32, slack: f32, spread_factor: f32) -> f32 {
 }
 
 /// Intervals within this share of a whole number of periods are on the period's grid.
-pub const GRID_TOLERANCE: f32 = 0.03;
+pub(crate) const GRID_TOLERANCE: f32 = 0.03;
 /// The share of waited frames that must lie on a period's grid for it to be the display's.
-pub const GRID_AGREEMENT: f32 = 0.8;
+pub(crate) const GRID_AGREEMENT: f32 = 0.8;
 /// Fewer waited frames than this say nothing about a period.
-pub const GRID_MIN_FRAMES: usize = 8;
+pub(crate) const GRID_MIN_FRAMES: usize = 8;
 
 /// The refresh period that paces frames whose intervals (seconds, of frames that waited for
 /// the display) are `intervals`: the shortest of them (a frame of one period), snapped to a
@@ -105,7 +105,7 @@ pub const GRID_MIN_FRAMES: usize = 8;
 /// [`GRID_TOLERANCE`] of one; `None` when fewer than [`GRID_MIN_FRAMES`] intervals are
 /// given or less than [`GRID_AGREEMENT`] of them lie on that period's grid (waits that do
 /// not follow a clock: back-pressure from a GPU, not a vertical blank).
-pub fn vblank_period(intervals: &[f32], hint: Option<f32>) -> Option<f32> {
+pub(crate) fn vblank_period(intervals: &[f32], hint: Option<f32>) -> Option<f32> {
     let valid = || {
         intervals
             .iter()
@@ -139,7 +139,7 @@ pub fn vblank_period(intervals: &[f32], hint: Option<f32>) -> Option<f32> {
 /// The number of standard deviations above the mean of a normal distribution that a share
 /// `share` of it exceeds (the upper quantile `Φ⁻¹(1 − share)`), within 5 × 10⁻⁴
 /// (Abramowitz & Stegun 26.2.23). `share` is taken within (10⁻⁶, 1 − 10⁻⁶); NaN gives 0.
-pub fn upper_normal_quantile(share: f32) -> f32 {
+pub(crate) fn upper_normal_quantile(share: f32) -> f32 {
     if share.is_nan() {
         return 0.0;
     }

@@ -29,7 +29,7 @@ const NOT_SELECTED: u32 = u32::MAX;
 
 /// How the Funkhouser–Séquin greedy ranks tuples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize, Reflect)]
-pub enum ValueOrdering {
+pub(crate) enum ValueOrdering {
     /// Increments along each object's upper convex hull (LP-undominated tuples only),
     /// ranked by Δbenefit / Δcost: at least half optimal with the correction.
     #[default]
@@ -54,7 +54,7 @@ struct Tuple {
 /// result is compared with the single highest-benefit tuple that fits on its own, and
 /// the better of the two is kept.
 #[derive(Clone, Debug)]
-pub struct FunkhouserSequin {
+pub(crate) struct FunkhouserSequin {
     /// Compare with the best single tuple. Default: `true`.
     pub half_optimality_fix: bool,
     /// How tuples are ranked. Default: [`ValueOrdering::Hull`].
@@ -86,13 +86,15 @@ impl Default for FunkhouserSequin {
 
 impl FunkhouserSequin {
     /// The hull-ranked greedy with the half-optimality fix.
-    pub fn new() -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
     /// The greedy with or without the half-optimality fix (without it, exactly the set
     /// that [`FunkhouserIncremental`] converges to).
-    pub fn with_half_optimality_fix(fix: bool) -> Self {
+    #[cfg(test)]
+    pub(crate) fn with_half_optimality_fix(fix: bool) -> Self {
         Self {
             half_optimality_fix: fix,
             ..Self::default()
@@ -100,7 +102,8 @@ impl FunkhouserSequin {
     }
 
     /// The published algorithm: tuples ranked by their own Benefit / Cost, no fix.
-    pub fn published() -> Self {
+    #[cfg(test)]
+    pub(crate) fn published() -> Self {
         Self {
             half_optimality_fix: false,
             ordering: ValueOrdering::Published,
@@ -109,7 +112,8 @@ impl FunkhouserSequin {
     }
 
     /// Whether the last frame's answer was the single best tuple rather than the greedy set.
-    pub fn used_single_best(&self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn used_single_best(&self) -> bool {
         self.used_single_best
     }
 
@@ -267,6 +271,7 @@ fn take_while_it_fits(sorted: &[Increment], mut left: f64, mut take: impl FnMut(
 }
 
 impl BudgetStrategy for FunkhouserSequin {
+    #[cfg(test)]
     fn name(&self) -> &'static str {
         match self.ordering {
             ValueOrdering::Hull => "Funkhouser–Séquin greedy",
@@ -335,7 +340,7 @@ fn best_single_tuple(problem: &BudgetProblem, budget: f64) -> Option<(usize, u32
 /// [`hysteresis`](Self::hysteresis) favours staying put: the level an object drew last
 /// frame counts its benefit multiplied by `1 + hysteresis`.
 #[derive(Clone, Debug, Default)]
-pub struct FunkhouserIncremental {
+pub(crate) struct FunkhouserIncremental {
     /// Extra weight for keeping last frame's level (≥ 0; NaN or negative count as 0).
     /// Default: `0.0`.
     pub hysteresis: f32,
@@ -351,16 +356,12 @@ pub struct FunkhouserIncremental {
 
 impl FunkhouserIncremental {
     /// The incremental optimiser with hysteresis `hysteresis`.
-    pub fn new(hysteresis: f32) -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn new(hysteresis: f32) -> Self {
         Self {
             hysteresis,
             ..Self::default()
         }
-    }
-
-    /// Raise-and-lower iterations the last frame needed.
-    pub fn iterations(&self) -> u32 {
-        self.iterations
     }
 
     fn hull_of(&self, object: usize) -> &[HullPoint] {
@@ -426,6 +427,7 @@ impl FunkhouserIncremental {
 }
 
 impl BudgetStrategy for FunkhouserIncremental {
+    #[cfg(test)]
     fn name(&self) -> &'static str {
         "Funkhouser–Séquin incremental"
     }

@@ -24,14 +24,14 @@ use super::problem::{
 };
 
 /// Index of a node in a [`LodHierarchy`].
-pub type NodeId = u32;
+pub(crate) type NodeId = u32;
 
 const NONE: u32 = u32::MAX;
 
 /// Why a node was refused by [`LodHierarchy`].
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum HierarchyError {
+pub(crate) enum HierarchyError {
     /// A leaf object without impostors cannot be represented.
     #[error("node {node}: a leaf object needs at least one impostor")]
     LeafWithoutImpostor {
@@ -72,7 +72,7 @@ pub enum HierarchyError {
 /// [`add_group`](Self::add_group) over existing parentless nodes. Parentless nodes hang
 /// from a virtual root.
 #[derive(Clone, Debug, Default)]
-pub struct LodHierarchy {
+pub(crate) struct LodHierarchy {
     parent: Vec<u32>,
     child_start: Vec<u32>,
     child_end: Vec<u32>,
@@ -83,7 +83,7 @@ pub struct LodHierarchy {
 
 impl LodHierarchy {
     /// An empty hierarchy.
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self {
             impostor_start: vec![0],
             ..Self::default()
@@ -91,17 +91,12 @@ impl LodHierarchy {
     }
 
     /// Number of nodes.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.parent.len()
     }
 
-    /// Whether there are no nodes.
-    pub fn is_empty(&self) -> bool {
-        self.parent.is_empty()
-    }
-
     /// Adds a leaf object with its impostors (best → cheapest, at least one).
-    pub fn add_object(&mut self, impostors: &[Level]) -> Result<NodeId, HierarchyError> {
+    pub(crate) fn add_object(&mut self, impostors: &[Level]) -> Result<NodeId, HierarchyError> {
         let node = self.len() as NodeId;
         if impostors.is_empty() {
             return Err(HierarchyError::LeafWithoutImpostor { node });
@@ -112,7 +107,7 @@ impl LodHierarchy {
     /// Adds a group over `children` (existing nodes without a parent) with its own
     /// impostors, best → cheapest; a group may have none, and is then always represented
     /// by its children.
-    pub fn add_group(
+    pub(crate) fn add_group(
         &mut self,
         children: &[NodeId],
         impostors: &[Level],
@@ -163,13 +158,13 @@ impl LodHierarchy {
     }
 
     /// The node's parent, `None` for a top-level node.
-    pub fn parent(&self, node: NodeId) -> Option<NodeId> {
+    pub(crate) fn parent(&self, node: NodeId) -> Option<NodeId> {
         let p = self.parent[node as usize];
         (p != NONE).then_some(p)
     }
 
     /// The node's children.
-    pub fn children(&self, node: NodeId) -> &[NodeId] {
+    pub(crate) fn children(&self, node: NodeId) -> &[NodeId] {
         let (s, e) = (
             self.child_start[node as usize],
             self.child_end[node as usize],
@@ -178,7 +173,7 @@ impl LodHierarchy {
     }
 
     /// The node's impostors, best → cheapest.
-    pub fn impostors(&self, node: NodeId) -> &[Level] {
+    pub(crate) fn impostors(&self, node: NodeId) -> &[Level] {
         let (s, e) = (
             self.impostor_start[node as usize],
             self.impostor_start[node as usize + 1],
@@ -187,14 +182,14 @@ impl LodHierarchy {
     }
 
     /// Nodes without a parent.
-    pub fn top_level(&self) -> impl Iterator<Item = NodeId> + '_ {
+    pub(crate) fn top_level(&self) -> impl Iterator<Item = NodeId> + '_ {
         (0..self.len() as NodeId).filter(|&n| self.parent[n as usize] == NONE)
     }
 }
 
 /// How a node is represented after [`HierarchicalLod::solve`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum NodeSelection {
+pub(crate) enum NodeSelection {
     /// Drawn as this impostor (index into its impostors, best → cheapest).
     Impostor(u32),
     /// Represented by its children.
@@ -234,7 +229,7 @@ const EMPTY: Aggregate = Aggregate {
 /// frames: call [`solve`](Self::solve) every frame with the same hierarchy shape, or
 /// [`reset`](Self::reset) when the hierarchy changes.
 #[derive(Clone, Debug)]
-pub struct HierarchicalLod {
+pub(crate) struct HierarchicalLod {
     /// Compare the result with the best single impostor shown with everything else at its
     /// cheapest representation, and keep the better (Mason & Blake's fix of the greedy's
     /// half-optimality guarantee). Default: `true`.
@@ -268,7 +263,7 @@ impl Default for HierarchicalLod {
 
 /// Totals of one [`HierarchicalLod::solve`].
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct HierarchyOutcome {
+pub(crate) struct HierarchyOutcome {
     /// Predicted cost of the representation.
     pub cost: f64,
     /// Its benefit.
@@ -279,17 +274,13 @@ pub struct HierarchyOutcome {
 
 impl HierarchicalLod {
     /// An optimiser that starts from the imaginary empty item.
-    pub fn new() -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
-    /// Forgets the previous representation; the next solve starts from the imaginary item.
-    pub fn reset(&mut self) {
-        self.state.clear();
-    }
-
     /// How `node` is represented.
-    pub fn selection(&self, node: NodeId) -> NodeSelection {
+    pub(crate) fn selection(&self, node: NodeId) -> NodeSelection {
         match self.state.get(node as usize) {
             Some(State::Explicit(k)) => NodeSelection::Impostor(*k),
             Some(State::Implicit) => NodeSelection::Children,
@@ -298,7 +289,7 @@ impl HierarchicalLod {
     }
 
     /// Chooses a representation of `hierarchy` costing at most `budget` where possible.
-    pub fn solve(&mut self, hierarchy: &LodHierarchy, budget: f32) -> HierarchyOutcome {
+    pub(crate) fn solve(&mut self, hierarchy: &LodHierarchy, budget: f32) -> HierarchyOutcome {
         let budget = f64::from(sanitize_time(budget));
         let root = hierarchy.len();
         let fresh = self.state.len() != root + 1;
@@ -331,7 +322,7 @@ impl HierarchicalLod {
     /// seeded [`NodeSelection::Hidden`] (new this frame) starts at its cheapest impostor,
     /// or open when it has none. So every node starts represented; missing entries count
     /// as hidden.
-    pub fn solve_from(
+    pub(crate) fn solve_from(
         &mut self,
         hierarchy: &LodHierarchy,
         budget: f32,
@@ -722,6 +713,7 @@ impl Iterator for ChildIter<'_> {
 /// frame's selection (newly visible objects at their cheapest level), so on a flat
 /// problem this behaves like Funkhouser–Séquin's incremental algorithm.
 impl BudgetStrategy for HierarchicalLod {
+    #[cfg(test)]
     fn name(&self) -> &'static str {
         "Mason–Blake hierarchical"
     }

@@ -5,17 +5,23 @@
 //! The exact optimum is a dynamic programme over Pareto frontiers (cost, benefit) — exact
 //! for real-valued costs, with no discretisation — whose frontier size is capped.
 
+#[cfg(test)]
 use super::hierarchical::{LodHierarchy, NodeId};
+#[cfg(test)]
 use super::hull::upper_hull;
-use super::problem::{BudgetProblem, sanitize_time};
+#[cfg(test)]
+use super::problem::BudgetProblem;
+use super::problem::sanitize_time;
 
 /// Frontier points the exact solvers may hold at once before giving up.
-pub const MAX_FRONTIER: usize = 1 << 20;
+#[cfg(test)]
+pub(crate) const MAX_FRONTIER: usize = 1 << 20;
 
 /// Why an exact optimum was not computed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
-pub enum OracleError {
+#[cfg(test)]
+pub(crate) enum OracleError {
     /// The instance is too large for the exact dynamic programme.
     #[error(
         "instance too large for the exact optimum: the Pareto frontier exceeded {MAX_FRONTIER} points"
@@ -25,7 +31,8 @@ pub enum OracleError {
 
 /// An optimal selection: one ladder index or `None` (not drawn) per object.
 #[derive(Clone, Debug, PartialEq, Default)]
-pub struct OptimalSelection {
+#[cfg(test)]
+pub(crate) struct OptimalSelection {
     /// The optimal total benefit.
     pub benefit: f64,
     /// Its cost.
@@ -35,6 +42,7 @@ pub struct OptimalSelection {
 }
 
 #[derive(Clone, Copy, Debug)]
+#[cfg(test)]
 struct Point {
     cost: f64,
     benefit: f64,
@@ -45,6 +53,7 @@ struct Point {
 }
 
 /// Keeps only points not dominated by a cheaper point with at least the same benefit.
+#[cfg(test)]
 fn prune(points: &mut Vec<Point>) {
     points.sort_by(|a, b| {
         a.cost
@@ -64,7 +73,8 @@ fn prune(points: &mut Vec<Point>) {
 
 /// The exact optimum of `problem` as a multiple-choice knapsack: at most one level per
 /// object (objects may be left undrawn), total cost at most `budget`, maximal benefit.
-pub fn optimal_selection(
+#[cfg(test)]
+pub(crate) fn optimal_selection(
     problem: &BudgetProblem,
     budget: f32,
 ) -> Result<OptimalSelection, OracleError> {
@@ -127,7 +137,8 @@ pub fn optimal_selection(
 
 /// The optimum of the linear relaxation (fractions of levels allowed): an upper bound on
 /// the benefit any selection within `budget` can reach. O(L log L) for L levels.
-pub fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
+#[cfg(test)]
+pub(crate) fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
     let budget = f64::from(sanitize_time(budget));
     // The LP optimum takes hull increments in falling efficiency, the last one in part.
     let mut increments: Vec<(f64, f64, f64)> = Vec::new();
@@ -158,7 +169,7 @@ pub fn lp_upper_bound(problem: &BudgetProblem, budget: f32) -> f64 {
 /// `cost`: `value · √(cost / full)` (capped at `value`; `value` when full detail is free).
 /// The benefit model of the app's ladders (`lod`), in which a representation's accuracy
 /// grows with the square root of its share of the full cost.
-pub fn sqrt_benefit(value: f32, full: f32, cost: f32) -> f64 {
+pub(crate) fn sqrt_benefit(value: f32, full: f32, cost: f32) -> f64 {
     let value = f64::from(value.max(0.0));
     if full.is_nan() || full <= 0.0 {
         return value;
@@ -173,7 +184,7 @@ pub fn sqrt_benefit(value: f32, full: f32, cost: f32) -> f64 {
 ///
 /// At the optimum every object not at full detail gets `cost = μ · value² / full` for one
 /// `μ`; objects whose full cost is reached first are capped there.
-pub fn sqrt_benefit_bound(objects: &[(f32, f32)], budget: f32) -> f64 {
+pub(crate) fn sqrt_benefit_bound(objects: &[(f32, f32)], budget: f32) -> f64 {
     let budget = f64::from(sanitize_time(budget));
     let mut bound = 0.0;
     // Per object that must share the budget: the μ at which it reaches full detail, its
@@ -230,7 +241,8 @@ pub fn sqrt_benefit_bound(objects: &[(f32, f32)], budget: f32) -> f64 {
 /// The best benefit over the complete representations of `hierarchy` (every leaf covered
 /// by exactly one impostor of itself or of an ancestor) within `budget`, or nothing at all
 /// — the constrained problem the hierarchical strategy approximates.
-pub fn hierarchy_optimum(hierarchy: &LodHierarchy, budget: f32) -> Result<f64, OracleError> {
+#[cfg(test)]
+pub(crate) fn hierarchy_optimum(hierarchy: &LodHierarchy, budget: f32) -> Result<f64, OracleError> {
     let budget = f64::from(sanitize_time(budget));
     let n = hierarchy.len();
     let mut frontiers: Vec<Vec<Point>> = Vec::with_capacity(n);
@@ -264,6 +276,7 @@ pub fn hierarchy_optimum(hierarchy: &LodHierarchy, budget: f32) -> Result<f64, O
 }
 
 /// Minkowski sum of frontiers (every child represented), pruned and capped at `budget`.
+#[cfg(test)]
 fn combine<'a>(
     frontiers: impl Iterator<Item = &'a Vec<Point>>,
     budget: f64,
@@ -296,15 +309,6 @@ fn combine<'a>(
         acc = next;
     }
     Ok(acc)
-}
-
-/// A strategy's benefit as a percentage of the LP bound (100 when the bound is 0).
-pub fn percent_of_bound(benefit: f64, bound: f64) -> f64 {
-    if bound > 0.0 {
-        100.0 * benefit / bound
-    } else {
-        100.0
-    }
 }
 
 #[cfg(test)]

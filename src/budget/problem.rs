@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 /// ladder. Robin Hood only reads the costs; Funkhouser–Séquin, the oracle and the
 /// hierarchical strategy also read the benefits.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize, Reflect)]
-pub struct Level {
+pub(crate) struct Level {
     /// Predicted rendering time of this representation, in seconds.
     pub cost: f32,
     /// Perceptual benefit of this representation (Funkhouser–Séquin's `Benefit`).
@@ -21,13 +21,13 @@ pub struct Level {
 
 impl Level {
     /// A representation costing `cost` seconds with benefit `benefit`.
-    pub const fn new(cost: f32, benefit: f32) -> Self {
+    pub(crate) const fn new(cost: f32, benefit: f32) -> Self {
         Self { cost, benefit }
     }
 
     /// Funkhouser–Séquin's `Value`: benefit per second. A free representation with
     /// a positive benefit is infinitely valuable; a free one without benefit is worth 0.
-    pub fn value(&self) -> f32 {
+    pub(crate) fn value(&self) -> f32 {
         if self.cost > 0.0 {
             self.benefit / self.cost
         } else if self.benefit > 0.0 {
@@ -41,7 +41,7 @@ impl Level {
 /// What an object drew last frame, for the strategies that start from it
 /// (Funkhouser–Séquin incremental, the triangle budget, the hierarchical strategy).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, Reflect)]
-pub enum PreviousSelection {
+pub(crate) enum PreviousSelection {
     /// Not visible last frame (or the caller does not track it): start at the cheapest level.
     #[default]
     New,
@@ -57,7 +57,7 @@ pub enum PreviousSelection {
 /// Fill it with [`BudgetProblem::push_object`], hand it to a [`BudgetStrategy`], and
 /// [`clear`](BudgetProblem::clear) it for the next frame (the capacity is kept).
 #[derive(Clone, Debug, Default)]
-pub struct BudgetProblem {
+pub(crate) struct BudgetProblem {
     values: Vec<f32>,
     complexities: Vec<f32>,
     previous: Vec<PreviousSelection>,
@@ -67,7 +67,7 @@ pub struct BudgetProblem {
 
 /// The per-object scalars of [`BudgetProblem::push_object`].
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct ObjectDesc {
+pub(crate) struct ObjectDesc {
     /// The object's value `v_i` this frame (see [`ValueFunction`](super::ValueFunction)).
     /// Must be finite and non-negative.
     pub value: f32,
@@ -82,7 +82,7 @@ pub struct ObjectDesc {
 /// Why an object was refused by [`BudgetProblem::push_object`].
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum BudgetInputError {
+pub(crate) enum BudgetInputError {
     /// The object has no representation at all.
     #[error("object {object} has no representations: every object needs at least one level")]
     EmptyLadder {
@@ -150,12 +150,14 @@ pub enum BudgetInputError {
 
 impl BudgetProblem {
     /// An empty problem.
-    pub fn new() -> Self {
+    #[cfg(test)]
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
     /// An empty problem with room for `objects` objects of about `levels_per_object` levels.
-    pub fn with_capacity(objects: usize, levels_per_object: usize) -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn with_capacity(objects: usize, levels_per_object: usize) -> Self {
         let mut ladder_offsets = Vec::with_capacity(objects + 1);
         ladder_offsets.push(0);
         Self {
@@ -168,7 +170,7 @@ impl BudgetProblem {
     }
 
     /// Removes every object, keeping the allocations.
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.values.clear();
         self.complexities.clear();
         self.previous.clear();
@@ -178,7 +180,7 @@ impl BudgetProblem {
 
     /// Adds one object with its ladder of representations (best → cheapest) and
     /// returns its index. Nothing is added when the input is refused.
-    pub fn push_object(
+    pub(crate) fn push_object(
         &mut self,
         desc: ObjectDesc,
         ladder: &[Level],
@@ -244,32 +246,27 @@ impl BudgetProblem {
     }
 
     /// Number of objects.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.values.len()
     }
 
-    /// Whether there are no objects.
-    pub fn is_empty(&self) -> bool {
-        self.values.is_empty()
-    }
-
     /// Every object's value, by object index.
-    pub fn values(&self) -> &[f32] {
+    pub(crate) fn values(&self) -> &[f32] {
         &self.values
     }
 
     /// Every object's complexity key, by object index.
-    pub fn complexities(&self) -> &[f32] {
+    pub(crate) fn complexities(&self) -> &[f32] {
         &self.complexities
     }
 
     /// What object `object` drew last frame.
-    pub fn previous(&self, object: usize) -> PreviousSelection {
+    pub(crate) fn previous(&self, object: usize) -> PreviousSelection {
         self.previous[object]
     }
 
     /// The ladder of object `object`, best → cheapest.
-    pub fn ladder(&self, object: usize) -> &[Level] {
+    pub(crate) fn ladder(&self, object: usize) -> &[Level] {
         let start = self.ladder_offsets[object] as usize;
         let end = self.ladder_offsets[object + 1] as usize;
         &self.levels[start..end]
@@ -291,7 +288,8 @@ impl BudgetProblem {
     /// The total benefit of a selection (one ladder index or `None` per object).
     ///
     /// A truncated allocation counts the benefit of the level it names.
-    pub fn benefit_of(&self, allocations: &[Allocation]) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn benefit_of(&self, allocations: &[Allocation]) -> f64 {
         allocations
             .iter()
             .enumerate()
@@ -305,7 +303,7 @@ impl BudgetProblem {
 
 /// What a strategy decided for one object.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize, Reflect)]
-pub struct Allocation {
+pub(crate) struct Allocation {
     /// Time handed to the object, in seconds. Strategies without a notion of
     /// allotment (Funkhouser–Séquin, the triangle budget, the hierarchical one)
     /// report the cost of what they selected.
@@ -322,7 +320,7 @@ pub struct Allocation {
 
 impl Allocation {
     /// An object that draws nothing.
-    pub const DROPPED: Self = Self {
+    pub(crate) const DROPPED: Self = Self {
         given: 0.0,
         used: 0.0,
         level: None,
@@ -331,7 +329,7 @@ impl Allocation {
 
     /// An object drawing `level`, given exactly its cost: how strategies without a notion of
     /// allotment report what they selected.
-    pub const fn drawn(cost: f32, level: u32) -> Self {
+    pub(crate) const fn drawn(cost: f32, level: u32) -> Self {
         Self {
             given: cost,
             used: cost,
@@ -341,19 +339,19 @@ impl Allocation {
     }
 
     /// Whether the object draws anything.
-    pub fn is_drawn(&self) -> bool {
+    pub(crate) fn is_drawn(&self) -> bool {
         self.level.is_some()
     }
 
     /// Time used beyond the allotment (only truncated objects have any).
-    pub fn overrun(&self) -> f32 {
+    pub(crate) fn overrun(&self) -> f32 {
         (self.used - self.given).max(0.0)
     }
 }
 
 /// Per-frame totals every strategy reports, so strategies can be compared frame by frame.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize, Reflect)]
-pub struct BudgetStats {
+pub(crate) struct BudgetStats {
     /// Rendering time the strategy was asked to distribute, in seconds (after clamping
     /// NaN or negative input to 0).
     pub rendering_time: f32,
@@ -385,7 +383,7 @@ pub struct BudgetStats {
 
 impl BudgetStats {
     /// Totals over `allocations` for a frame with `rendering_time` seconds to render.
-    pub fn from_allocations(rendering_time: f32, allocations: &[Allocation]) -> Self {
+    pub(crate) fn from_allocations(rendering_time: f32, allocations: &[Allocation]) -> Self {
         let mut given = 0.0_f64;
         let mut used = 0.0_f64;
         let mut used_within_allotment = 0.0_f64;
@@ -421,8 +419,9 @@ impl BudgetStats {
 /// Every strategy takes the same [`BudgetProblem`] and returns one [`Allocation`] per
 /// object (in object order) plus the same [`BudgetStats`], so strategies are
 /// interchangeable and comparable frame by frame.
-pub trait BudgetStrategy: Send + Sync + 'static {
+pub(crate) trait BudgetStrategy: Send + Sync + 'static {
     /// A short human-readable name, for logs and reports.
+    #[cfg(test)]
     fn name(&self) -> &'static str;
 
     /// Distributes `rendering_time` seconds over `problem`'s objects, writing exactly

@@ -12,7 +12,7 @@ use super::problem::{Allocation, BudgetProblem, BudgetStats, BudgetStrategy, san
 
 /// What an object does with the time it is given.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Fit {
+pub(crate) struct Fit {
     /// Predicted time of what the object will draw (seconds). May exceed the time given
     /// only when `truncated` is set.
     pub used: f32,
@@ -29,7 +29,7 @@ pub struct Fit {
 ///
 /// # Panics
 /// Never for a non-empty ladder; an empty ladder yields a zero-cost truncated fit.
-pub fn fit_ladder(costs: impl LadderCosts, time: f32) -> Fit {
+pub(crate) fn fit_ladder(costs: impl LadderCosts, time: f32) -> Fit {
     let len = costs.len();
     if len == 0 {
         return Fit {
@@ -64,13 +64,9 @@ pub fn fit_ladder(costs: impl LadderCosts, time: f32) -> Fit {
 }
 
 /// A ladder's costs, best → cheapest: a slice of costs or of [`Level`](super::Level)s.
-pub trait LadderCosts {
+pub(crate) trait LadderCosts {
     /// Number of representations.
     fn len(&self) -> usize;
-    /// Whether there are none.
-    fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
     /// Cost of representation `index`.
     fn cost(&self, index: usize) -> f32;
 }
@@ -98,7 +94,8 @@ impl LadderCosts for &[super::Level] {
 /// and never less than `minimum` (its cheapest drawable form).
 ///
 /// The level reported is 0 at full detail, 1 for a partial drawing and 2 when truncated.
-pub fn fit_continuous(full: f32, minimum: f32, time: f32) -> Fit {
+#[cfg(test)]
+pub(crate) fn fit_continuous(full: f32, minimum: f32, time: f32) -> Fit {
     let full = full.max(0.0);
     let minimum = minimum.clamp(0.0, full);
     if time >= full {
@@ -124,10 +121,10 @@ pub fn fit_continuous(full: f32, minimum: f32, time: f32) -> Fit {
 
 /// Residue worth another pass, as a fraction of the rendering time (or of the floors, when
 /// they exceed it).
-pub const RESIDUE_FRACTION: f64 = 0.01;
+pub(crate) const RESIDUE_FRACTION: f64 = 0.01;
 
 /// At most this many passes over the residue after the hand-out.
-pub const RESIDUE_PASSES: u32 = 3;
+pub(crate) const RESIDUE_PASSES: u32 = 3;
 
 /// The Robin Hood strategy. Keeps scratch buffers between frames, so reuse one value.
 ///
@@ -147,7 +144,7 @@ pub const RESIDUE_PASSES: u32 = 3;
 /// (level 0), simple → complex, each searching again with what it used plus its share;
 /// up to [`RESIDUE_PASSES`] times.
 #[derive(Clone, Debug, Default)]
-pub struct RobinHood {
+pub(crate) struct RobinHood {
     order: Vec<u32>,
     suffix_values: Vec<f64>,
     floors: Vec<f32>,
@@ -155,7 +152,8 @@ pub struct RobinHood {
 
 impl RobinHood {
     /// A Robin Hood distributor with empty scratch buffers.
-    pub fn new() -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
@@ -173,7 +171,7 @@ impl RobinHood {
     /// floor). Objects beyond the end of a shorter `complexities` or `floors` slice count
     /// as complexity 0 (visited first) and floor 0; NaN, negative or infinite floors
     /// count as 0.
-    pub fn distribute_with<F>(
+    pub(crate) fn distribute_with<F>(
         &mut self,
         values: &[f32],
         complexities: &[f32],
@@ -313,6 +311,7 @@ fn offer(fit: &mut impl FnMut(usize, f32) -> Fit, i: usize, given: f32) -> Alloc
 }
 
 impl BudgetStrategy for RobinHood {
+    #[cfg(test)]
     fn name(&self) -> &'static str {
         "Robin Hood"
     }

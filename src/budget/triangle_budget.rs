@@ -20,7 +20,7 @@ use super::problem::{
 
 /// The SRGGE triangle-budget greedy, starting from last frame's levels.
 #[derive(Clone, Debug, Default)]
-pub struct TriangleBudget {
+pub(crate) struct TriangleBudget {
     /// Levels of detail gained above the cheapest, per object (0 = cheapest).
     detail: Vec<u32>,
     contribution: Vec<f32>,
@@ -29,7 +29,8 @@ pub struct TriangleBudget {
 
 impl TriangleBudget {
     /// A triangle-budget greedy with empty scratch buffers.
-    pub fn new() -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
@@ -51,6 +52,7 @@ impl TriangleBudget {
 }
 
 impl BudgetStrategy for TriangleBudget {
+    #[cfg(test)]
     fn name(&self) -> &'static str {
         "triangle budget"
     }

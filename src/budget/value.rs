@@ -7,11 +7,11 @@ use serde::{Deserialize, Serialize};
 /// Depths and distances below this (in world units) are raised to it, so a camera
 /// standing inside a tree gives that tree a large but finite value instead of an
 /// infinite or NaN one.
-pub const MIN_DEPTH: f32 = 1.0e-3;
+pub(crate) const MIN_DEPTH: f32 = 1.0e-3;
 
 /// What a value function knows about one visible object.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct ValueInputs {
+pub(crate) struct ValueInputs {
     /// Un-projected area of the instance (world units², already scaled).
     pub area: f32,
     /// Depth of the object along the camera's view direction.
@@ -26,7 +26,7 @@ pub struct ValueInputs {
 impl ValueInputs {
     /// The inputs with NaN or negative area and importance replaced by 0, and depth and
     /// distance raised to [`MIN_DEPTH`] (NaN depth counts as [`MIN_DEPTH`] too).
-    pub fn sanitized(&self) -> Self {
+    pub(crate) fn sanitized(&self) -> Self {
         let non_negative = |x: f32| if x.is_nan() { 0.0 } else { x.max(0.0) };
         let depth = |x: f32| {
             if x.is_nan() {
@@ -49,7 +49,7 @@ impl ValueInputs {
 ///
 /// Callers pass the result through [`finite_value`], so a user function that returns
 /// NaN, a negative or an infinite number cannot poison the budget.
-pub trait ValueModel: Send + Sync {
+pub(crate) trait ValueModel: Send + Sync {
     /// The value of one object. Should be finite and non-negative.
     fn value(&self, inputs: &ValueInputs) -> f32;
 }
@@ -83,25 +83,16 @@ pub enum ValueFunction {
 
 impl ValueFunction {
     /// Every built-in value function, in paper order.
-    pub const ALL: [Self; 4] = [Self::P8, Self::P9, Self::P10, Self::P11];
+    #[cfg(test)]
+    pub(crate) const ALL: [Self; 4] = [Self::P8, Self::P9, Self::P10, Self::P11];
 
     /// The power of the area in the function: the value of `k` times the area is `k^e`
     /// times the value (1 for P-8, P-9 and P-10, ½ for P-11). The LOD uses it to value a
     /// far tree's leaf groups, all at one depth, with one evaluation.
-    pub fn area_exponent(self) -> f32 {
+    pub(crate) fn area_exponent(self) -> f32 {
         match self {
             Self::P8 | Self::P9 | Self::P10 => 1.0,
             Self::P11 => 0.5,
-        }
-    }
-
-    /// The paper's equation number.
-    pub fn equation(self) -> &'static str {
-        match self {
-            Self::P8 => "P-8",
-            Self::P9 => "P-9",
-            Self::P10 => "P-10",
-            Self::P11 => "P-11",
         }
     }
 }
@@ -126,7 +117,7 @@ impl ValueModel for ValueFunction {
 
 /// Makes any computed value usable by the budget: NaN and negatives become 0,
 /// +∞ becomes `f32::MAX`.
-pub fn finite_value(value: f32) -> f32 {
+pub(crate) fn finite_value(value: f32) -> f32 {
     if value.is_nan() {
         0.0
     } else {

@@ -9,7 +9,7 @@ use super::LinearCost;
 /// the logic benchmark; interpolated between the nearest samples at run time.
 #[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct LogicTable {
+pub(crate) struct LogicTable {
     /// The target frame time the samples were measured at, ms (the LOD's search, and so
     /// the logic time, depends on it when LOD is view-dependent).
     pub target_ms: f32,
@@ -24,7 +24,7 @@ impl LogicTable {
     /// by tens of percent, so two samples one instance apart would otherwise make a
     /// segment whose slope is noise (the lavapipe calibration had 533 → 0 ms and
     /// 534 → 20 ms).
-    pub fn new(target_ms: f32, mut samples: Vec<(u32, f32)>) -> Self {
+    pub(crate) fn new(target_ms: f32, mut samples: Vec<(u32, f32)>) -> Self {
         samples.retain(|s| s.1.is_finite() && s.1 >= 0.0);
         samples.sort_by_key(|s| s.0);
         let gap = Self::merge_gap(samples.last().map_or(0, |s| s.0));
@@ -54,7 +54,7 @@ impl LogicTable {
 
     /// Samples whose visible counts differ by at most this much are one sample: 2% of the
     /// largest count, at least 2.
-    pub fn merge_gap(largest_count: u32) -> u32 {
+    pub(crate) fn merge_gap(largest_count: u32) -> u32 {
         (largest_count / 50).max(2)
     }
 
@@ -63,7 +63,7 @@ impl LogicTable {
     /// overall slope (first to last sample, so one noisy end segment cannot send the
     /// estimate to seconds), never below zero; a single sample is a constant; an empty
     /// table is 0.
-    pub fn time(&self, visible: u32) -> f32 {
+    pub(crate) fn time(&self, visible: u32) -> f32 {
         let s = &self.samples;
         let (Some(&first), Some(&last)) = (s.first(), s.last()) else {
             return 0.0;
@@ -96,7 +96,7 @@ impl LogicTable {
 /// several targets: each table interpolated in the visible count, then linearly between
 /// the two tables whose targets bracket `target_ms` (the nearest table outside their
 /// range: logic time is not extrapolated in the target). No tables: 0.
-pub fn logic_time(tables: &[LogicTable], visible: u32, target_ms: f32) -> f32 {
+pub(crate) fn logic_time(tables: &[LogicTable], visible: u32, target_ms: f32) -> f32 {
     let mut below: Option<&LogicTable> = None;
     let mut above: Option<&LogicTable> = None;
     for table in tables.iter().filter(|t| t.target_ms.is_finite()) {
@@ -124,26 +124,26 @@ pub fn logic_time(tables: &[LogicTable], visible: u32, target_ms: f32) -> f32 {
 #[serde(default, deny_unknown_fields)]
 pub struct Calibration {
     /// The adapter it was measured on (wgpu's adapter name).
-    pub adapter: String,
+    pub(crate) adapter: String,
     /// The driver (wgpu's driver and driver info).
-    pub driver: String,
+    pub(crate) driver: String,
     /// Triangles.
-    pub triangles: LinearCost,
+    pub(crate) triangles: LinearCost,
     /// Lines, per width in pixels from 1 (index 0) up.
-    pub lines: Vec<LinearCost>,
+    pub(crate) lines: Vec<LinearCost>,
     /// Points, per size in pixels from 1 (index 0) up.
-    pub points: Vec<LinearCost>,
+    pub(crate) points: Vec<LinearCost>,
     /// Logic time against visible instances, one table per target frame time measured
     /// (see [`logic_time`]): the main world's update, without the wait for the render
     /// world.
-    pub logic: Vec<LogicTable>,
+    pub(crate) logic: Vec<LogicTable>,
     /// The render world's time for a frame in which the forest draws nothing (Bevy's own
     /// passes, uploads, the present), seconds. Files written before it was measured read
     /// the default's.
-    pub render_fixed: f32,
+    pub(crate) render_fixed: f32,
     /// Bevy's own mesh path, which `LodLadder` entities draw by (feature `render`). Files
     /// without it read the default's.
-    pub meshes: MeshPathCost,
+    pub(crate) meshes: MeshPathCost,
 }
 
 /// What a mesh drawn by Bevy's own pipeline (a `Mesh3d` and its material) costs the
@@ -151,7 +151,7 @@ pub struct Calibration {
 /// triangle, seconds.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct MeshPathCost {
+pub(crate) struct MeshPathCost {
     /// Per mesh drawn.
     pub per_draw: f32,
     /// Per triangle drawn.
@@ -217,10 +217,10 @@ impl Default for Calibration {
 
 /// The most a calibration's fixed or logic time may be, seconds: a frame of ten seconds
 /// is a stopped machine, not a cost.
-pub const MAX_FIXED_SECONDS: f32 = 10.0;
+pub(crate) const MAX_FIXED_SECONDS: f32 = 10.0;
 
 /// The most one primitive (or one pixel of it) may cost, seconds.
-pub const MAX_PRIMITIVE_SECONDS: f32 = 0.01;
+pub(crate) const MAX_PRIMITIVE_SECONDS: f32 = 0.01;
 
 /// Why a calibration file was refused.
 #[derive(Debug, thiserror::Error)]
@@ -312,7 +312,7 @@ impl Calibration {
 
     /// The fixed per-frame part of the pass: one draw of each family (the fixed part of
     /// triangles, of the thinnest lines and of the smallest points), seconds.
-    pub fn fixed_time(&self) -> f32 {
+    pub(crate) fn fixed_time(&self) -> f32 {
         (self.triangles.fixed
             + self.lines.first().map_or(0.0, |c| c.fixed)
             + self.points.first().map_or(0.0, |c| c.fixed))
@@ -321,7 +321,7 @@ impl Calibration {
 
     /// The render world's whole fixed time per frame: [`Calibration::render_fixed`] and
     /// one draw of each family ([`Calibration::fixed_time`]), seconds.
-    pub fn render_fixed_time(&self) -> f32 {
+    pub(crate) fn render_fixed_time(&self) -> f32 {
         let fixed = if self.render_fixed.is_finite() {
             self.render_fixed.max(0.0)
         } else {
@@ -333,7 +333,7 @@ impl Calibration {
     /// The logic tables as one line, `(time with nothing visible, time per visible
     /// instance)` in seconds, at the middle of the targets they were measured at (the
     /// prior of the learned logic model).
-    pub fn logic_line(&self) -> (f32, f32) {
+    pub(crate) fn logic_line(&self) -> (f32, f32) {
         let mut targets: Vec<f32> = self
             .logic
             .iter()
@@ -386,7 +386,8 @@ impl Calibration {
     }
 
     /// Parses `text`, or falls back to [`Calibration::default`] with the reason.
-    pub fn from_ron_str_or_default(text: &str) -> (Self, Option<CalibrationError>) {
+    #[cfg(test)]
+    pub(crate) fn from_ron_str_or_default(text: &str) -> (Self, Option<CalibrationError>) {
         match Self::from_ron_str(text) {
             Ok(c) => (c, None),
             Err(e) => (Self::default(), Some(e)),
@@ -411,7 +412,8 @@ pub struct AdapterIdentity {
 
 /// The file name a calibration of `adapter` is saved under: the adapter name in lower
 /// case, runs of anything but letters and digits as one `-`, then `.calibration.ron`.
-pub fn calibration_file_name(adapter: &str) -> String {
+#[cfg(any(test, feature = "render"))]
+pub(crate) fn calibration_file_name(adapter: &str) -> String {
     let mut name = String::new();
     for c in adapter.chars() {
         if c.is_ascii_alphanumeric() {
@@ -429,7 +431,7 @@ pub fn calibration_file_name(adapter: &str) -> String {
 
 /// What [`find_calibration`] found in a directory.
 #[derive(Debug, Default)]
-pub struct CalibrationSearch {
+pub(crate) struct CalibrationSearch {
     /// The calibration for the adapter: one naming the same adapter and driver, else one
     /// naming the same adapter.
     pub found: Option<(std::path::PathBuf, Calibration)>,
@@ -438,7 +440,7 @@ pub struct CalibrationSearch {
 }
 
 /// Reads the calibration file at `path`.
-pub fn read_calibration(path: &std::path::Path) -> Result<Calibration, String> {
+pub(crate) fn read_calibration(path: &std::path::Path) -> Result<Calibration, String> {
     let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
     Calibration::from_ron_str(&text).map_err(|e| e.to_string())
 }
@@ -446,7 +448,10 @@ pub fn read_calibration(path: &std::path::Path) -> Result<Calibration, String> {
 /// Looks through the `*.calibration.ron` files of `dir` for one measured on `adapter`.
 /// A missing directory finds nothing; unreadable or malformed files are listed in
 /// [`CalibrationSearch::refused`] and skipped.
-pub fn find_calibration(dir: &std::path::Path, adapter: &AdapterIdentity) -> CalibrationSearch {
+pub(crate) fn find_calibration(
+    dir: &std::path::Path,
+    adapter: &AdapterIdentity,
+) -> CalibrationSearch {
     let mut search = CalibrationSearch::default();
     let Ok(entries) = std::fs::read_dir(dir) else {
         return search;

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 /// A primitive family's cost: `fixed + per_primitive · primitives + per_pixel · pixels`,
 /// in seconds.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
-pub struct LinearCost {
+pub(crate) struct LinearCost {
     /// Cost of drawing any of this family at all (state changes, the draw call).
     pub fixed: f32,
     /// Cost per primitive (vertex work, setup).
@@ -16,7 +16,8 @@ pub struct LinearCost {
 
 impl LinearCost {
     /// Predicted time of `primitives` primitives covering `pixels` pixels (0 for none).
-    pub fn time(&self, primitives: f32, pixels: f32) -> f32 {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn time(&self, primitives: f32, pixels: f32) -> f32 {
         if primitives <= 0.0 {
             return 0.0;
         }
@@ -26,7 +27,8 @@ impl LinearCost {
 
 /// One benchmark sample: how many primitives, how many pixels they covered, how long it took.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CostSample {
+#[cfg(any(test, feature = "render"))]
+pub(crate) struct CostSample {
     /// Primitives drawn.
     pub primitives: f32,
     /// Pixels covered.
@@ -38,7 +40,8 @@ pub struct CostSample {
 /// Why a fit failed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
-pub enum FitError {
+#[cfg(any(test, feature = "render"))]
+pub(crate) enum FitError {
     /// Fewer than three finite samples.
     #[error("need at least 3 finite samples to fit 3 parameters, got {0}")]
     TooFewSamples(usize),
@@ -48,7 +51,8 @@ pub enum FitError {
 }
 
 /// Least-squares fit of a [`LinearCost`] to samples (normal equations, solved in `f64`).
-pub fn fit_linear_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
+#[cfg(test)]
+pub(crate) fn fit_linear_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
     let rows = finite_rows(samples);
     if rows.len() < 3 {
         return Err(FitError::TooFewSamples(rows.len()));
@@ -62,6 +66,7 @@ pub fn fit_linear_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
 }
 
 /// `[1, primitives, pixels, time]` per finite sample.
+#[cfg(any(test, feature = "render"))]
 fn finite_rows(samples: &[CostSample]) -> Vec<[f64; 4]> {
     samples
         .iter()
@@ -82,7 +87,8 @@ fn finite_rows(samples: &[CostSample]) -> Vec<[f64; 4]> {
 /// Noise makes an unmeasurably small part come out negative in the plain fit; dropping it
 /// is better than clamping it. When pixels follow the primitive count (points of one
 /// size) the per-pixel part cannot be told apart and is left at 0.
-pub fn fit_nonnegative_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
+#[cfg(any(test, feature = "render"))]
+pub(crate) fn fit_nonnegative_cost(samples: &[CostSample]) -> Result<LinearCost, FitError> {
     let rows = finite_rows(samples);
     if rows.is_empty() {
         return Err(FitError::TooFewSamples(0));
@@ -135,6 +141,7 @@ pub fn fit_nonnegative_cost(samples: &[CostSample]) -> Result<LinearCost, FitErr
 
 /// Least squares of `rows[..][3]` on the given columns of `rows` (normal equations with
 /// scaled columns, solved in `f64`); `None` when singular or with too few rows.
+#[cfg(any(test, feature = "render"))]
 fn least_squares(rows: &[[f64; 4]], columns: &[usize]) -> Option<Vec<f64>> {
     let k = columns.len();
     if rows.len() < k {
@@ -172,7 +179,8 @@ fn least_squares(rows: &[[f64; 4]], columns: &[usize]) -> Option<Vec<f64>> {
 /// some sizes: each measured size is fitted on its own ([`fit_nonnegative_cost`]); a size
 /// between two measured ones gets the linear interpolation of their parts; a size
 /// outside the measured ones, the nearest.
-pub fn fit_sized_costs(
+#[cfg(any(test, feature = "render"))]
+pub(crate) fn fit_sized_costs(
     samples: &[(u32, CostSample)],
     max_size: u32,
 ) -> Result<Vec<LinearCost>, FitError> {
@@ -209,6 +217,7 @@ pub fn fit_sized_costs(
 }
 
 /// Gaussian elimination with partial pivoting; `None` when singular.
+#[cfg(any(test, feature = "render"))]
 fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     let norm = a.iter().flatten().fold(0.0_f64, |m, x| m.max(x.abs()));
     for col in 0..3 {

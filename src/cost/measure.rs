@@ -62,10 +62,10 @@ pub struct FrameSample {
 /// Waits shorter than this are not a wait for the display: Bevy's own `Cleanup` and
 /// `PostCleanup` systems, counted with the waits, take up to about a millisecond in a
 /// debug build.
-pub const WAIT_THRESHOLD: f32 = 2e-3;
+pub(crate) const WAIT_THRESHOLD: f32 = 2e-3;
 /// Main-world idling shorter than this is the event loop's own overhead (measured at
 /// 0.05–0.3 ms on lavapipe with winit), not an app idling by choice.
-pub const IDLE_THRESHOLD: f32 = 1e-3;
+pub(crate) const IDLE_THRESHOLD: f32 = 1e-3;
 
 /// Which part of a frame took longest, as the frames overlap in Bevy's pipelined
 /// rendering.
@@ -97,7 +97,7 @@ impl FrameSample {
     }
 
     /// The rendering side's time: the longer of the render world's CPU work and the GPU's.
-    pub fn rendering(&self) -> f32 {
+    pub(crate) fn rendering(&self) -> f32 {
         self.render.max(self.gpu.unwrap_or(0.0))
     }
 
@@ -129,17 +129,17 @@ impl FrameSample {
 }
 
 /// Measured frames, for the cost model and anyone else who wants them (the forest example
-/// records them). Producers [`push`](FrameSamples::push) samples as they arrive; at the
+/// records them). Producers `push` samples as they arrive; at the
 /// start of each update ([`CostSystems::Measure`](super::CostSystems::Measure)) they
 /// become [`FrameSamples::arrived`] for that update, in the order pushed.
 ///
 /// The measurement [`CostPlugin`](super::CostPlugin) adds with Bevy's render app is one
 /// producer; a test or a custom renderer can push its own. A sample whose GPU time comes
-/// later is pushed with [`push_awaiting_gpu`](FrameSamples::push_awaiting_gpu) and held
-/// (with every sample pushed after it) until [`push_gpu`](FrameSamples::push_gpu) brings
-/// its GPU time, or for at most [`GPU_WAIT_UPDATES`] updates.
+/// later is pushed with `push_awaiting_gpu` and held
+/// (with every sample pushed after it) until `push_gpu` brings
+/// its GPU time, or for at most `GPU_WAIT_UPDATES` updates.
 ///
-/// A renderer that knows its own GPU time also [`push_pass`](FrameSamples::push_pass)es it:
+/// A renderer that knows its own GPU time also `push_pass`es it:
 /// the cost model learns from it which part of the rendering its primitives take, and
 /// which part is fixed (the forest pass does, when Bevy's `RenderDiagnosticsPlugin` is
 /// added and the adapter has timestamp queries).
@@ -153,7 +153,7 @@ pub struct FrameSamples {
 }
 
 /// How many updates a sample waits for its GPU time before it is delivered without.
-pub const GPU_WAIT_UPDATES: u32 = 8;
+pub(crate) const GPU_WAIT_UPDATES: u32 = 8;
 
 #[derive(Debug)]
 struct PendingSample {
@@ -164,7 +164,7 @@ struct PendingSample {
 
 impl FrameSamples {
     /// Queues a sample; it arrives at the start of the next update.
-    pub fn push(&mut self, sample: FrameSample) {
+    pub(crate) fn push(&mut self, sample: FrameSample) {
         self.pending.push_back(PendingSample {
             sample,
             awaits_gpu: false,
@@ -175,7 +175,7 @@ impl FrameSamples {
     /// Queues a sample whose [`FrameSample::gpu`] time will come with
     /// [`push_gpu`](FrameSamples::push_gpu); it arrives once that has come (or after
     /// [`GPU_WAIT_UPDATES`] updates, without it).
-    pub fn push_awaiting_gpu(&mut self, sample: FrameSample) {
+    pub(crate) fn push_awaiting_gpu(&mut self, sample: FrameSample) {
         self.pending.push_back(PendingSample {
             sample,
             awaits_gpu: true,
@@ -185,7 +185,7 @@ impl FrameSamples {
 
     /// The GPU time, seconds, of frame `frame`'s whole frame. A time for a frame that no
     /// sample awaits is kept for [`GPU_WAIT_UPDATES`] updates, then dropped.
-    pub fn push_gpu(&mut self, frame: u64, seconds: f32) {
+    pub(crate) fn push_gpu(&mut self, frame: u64, seconds: f32) {
         self.gpu_times.push((frame, seconds, 0));
     }
 
@@ -198,12 +198,13 @@ impl FrameSamples {
     /// Queues the GPU time, in seconds, of the pass that draws the budgeted primitives, for
     /// a recent frame (GPU timings arrive a few frames late, and are not tied to a frame
     /// number: the cost model pairs each with the latest frame it learned from).
-    pub fn push_pass(&mut self, seconds: f32) {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn push_pass(&mut self, seconds: f32) {
         self.pending_passes.push(seconds);
     }
 
     /// The pass times that arrived at the start of this update, oldest first.
-    pub fn arrived_passes(&self) -> &[f32] {
+    pub(crate) fn arrived_passes(&self) -> &[f32] {
         &self.arrived_passes
     }
 
@@ -257,7 +258,7 @@ pub struct FrameClock {
 
 impl FrameClock {
     /// Seconds since this frame's update started (`First`); 0 outside an update.
-    pub fn elapsed(&self) -> f32 {
+    pub(crate) fn elapsed(&self) -> f32 {
         self.started.map_or(0.0, |s| s.elapsed().as_secs_f32())
     }
 
@@ -272,11 +273,11 @@ const PENDING_FRAMES: usize = 64;
 
 /// Runs before `First`: starts the frame's clock.
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
-pub struct FrameStart;
+pub(crate) struct FrameStart;
 
 /// Runs after `Last`: stops it.
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
-pub struct FrameEnd;
+pub(crate) struct FrameEnd;
 
 /// A frame as the render world reports it.
 #[derive(Clone, Copy, Debug)]
@@ -322,7 +323,8 @@ struct Reports {
 /// compiling (for at most [`COMPILING_SECONDS`]): the frame's times are not a real
 /// frame's. Cleared when the render world starts a frame.
 #[derive(Resource, Debug, Default)]
-pub struct DrawIncomplete(pub bool);
+#[cfg(any(test, feature = "render"))]
+pub(crate) struct DrawIncomplete(pub bool);
 
 /// The render world's view of the clock.
 #[cfg(feature = "render")]
@@ -472,7 +474,8 @@ fn build_render(app: &mut App) {
 /// How long pipelines may keep compiling before their frames count as real again,
 /// seconds: a shader that never loads keeps its pipeline queued for ever, and the model
 /// must not stop learning for it.
-pub const COMPILING_SECONDS: f32 = 10.0;
+#[cfg(any(test, feature = "render"))]
+pub(crate) const COMPILING_SECONDS: f32 = 10.0;
 
 /// A frame rendered while some pipeline was still compiling is incomplete: what needs it
 /// (a material's first mesh, say) was not drawn, and its time is not the scene's.

@@ -5,31 +5,39 @@
 //! ([`FrameSample`]: the main world's logic, the render world's rendering and the frame
 //! time) and the [`CostModel`] learns from them what this machine costs now: the fixed
 //! part and each primitive family's cost over seconds, how fast the machine runs within
-//! a second, and how logic and rendering overlap in a frame. See [`model`] for the model
-//! and [`online`] for the learning.
+//! a second, and how logic and rendering overlap in a frame.
 
 mod calibration;
 mod fit;
 #[cfg(feature = "render")]
 mod gpu_frame;
 mod measure;
-pub mod model;
-pub mod online;
+mod model;
+pub(crate) mod online;
 mod pacing;
 mod primitive;
 
-pub use calibration::*;
-pub use fit::*;
-pub use measure::{
-    COMPILING_SECONDS, DrawIncomplete, FrameBound, FrameClock, FrameEnd, FrameSample, FrameSamples,
-    FrameStart, GPU_WAIT_UPDATES, IDLE_THRESHOLD, WAIT_THRESHOLD,
-};
+#[cfg(test)]
+pub(crate) use calibration::logic_time;
+pub use calibration::{AdapterIdentity, Calibration, CalibrationError};
+#[cfg(any(test, feature = "render"))]
+pub(crate) use calibration::{LogicTable, MeshPathCost, calibration_file_name};
+pub(crate) use calibration::{find_calibration, read_calibration};
+pub(crate) use fit::LinearCost;
+#[cfg(any(test, feature = "render"))]
+pub(crate) use fit::{CostSample, fit_nonnegative_cost, fit_sized_costs};
+#[cfg(test)]
+pub(crate) use fit::{FitError, fit_linear_cost};
+#[cfg(any(test, feature = "render"))]
+pub(crate) use measure::DrawIncomplete;
+pub(crate) use measure::WAIT_THRESHOLD;
+pub use measure::{FrameBound, FrameClock, FrameSample, FrameSamples};
 pub use model::{
     CostModel, FrameOverlap, FramePrediction, LearnedCosts, LearnedFrame, LearningRates,
-    STALL_FACTOR, STALL_SECONDS, is_stall,
 };
-pub use pacing::MeasuredPacing;
-pub use primitive::{FamilyScales, FamilyTimes, PrimitiveCosts};
+pub(crate) use pacing::MeasuredPacing;
+pub(crate) use primitive::PrimitiveCosts;
+pub use primitive::{FamilyScales, FamilyTimes};
 
 use bevy::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -58,7 +66,7 @@ pub struct CostSettings {
     pub online: bool,
     /// How fast the model learns. Changing them forgets what was learned. Default:
     /// [`LearningRates::default`]. A rate that is not finite is taken as its default and
-    /// the others kept within bounds ([`LearningRates::usable`]), with a warning.
+    /// the others kept within bounds (`LearningRates::usable`), with a warning.
     pub rates: LearningRates,
 }
 
@@ -119,7 +127,7 @@ impl Default for CalibrationDir {
 ///
 /// Frames are measured when Bevy's render app is present (the `render` feature and
 /// `RenderPlugin`); without it nothing is measured and the model predicts with its
-/// calibration, unless something else [pushes](FrameSamples::push) samples.
+/// calibration, unless something else pushes samples.
 #[derive(Default)]
 pub struct CostPlugin;
 

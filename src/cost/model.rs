@@ -85,7 +85,7 @@ impl FrameOverlap {
     /// The longest rendering time that keeps a frame with `logic` seconds of logic within
     /// `target` seconds: the inverse of [`FrameOverlap::frame_time`] in `render`. Zero
     /// (never negative or NaN) when even no rendering would not fit.
-    pub fn rendering_time(&self, logic: f32, target: f32) -> f32 {
+    pub(crate) fn rendering_time(&self, logic: f32, target: f32) -> f32 {
         if !(target.is_finite() && target > 0.0) || logic.is_nan() {
             return 0.0;
         }
@@ -197,14 +197,14 @@ pub struct LearningRates {
 impl LearningRates {
     /// The shortest time constant used, seconds: a shorter one would chase each frame's
     /// noise.
-    pub const MIN_SECONDS: f32 = 0.1;
+    pub(crate) const MIN_SECONDS: f32 = 0.1;
     /// The longest time constant used, seconds (an hour).
-    pub const MAX_SECONDS: f32 = 3600.0;
+    pub(crate) const MAX_SECONDS: f32 = 3600.0;
 
     /// These rates as the model uses them: a time constant that is not finite is its
     /// default, the others are kept within [`MIN_SECONDS`](Self::MIN_SECONDS)..=
     /// [`MAX_SECONDS`](Self::MAX_SECONDS).
-    pub fn usable(self) -> Self {
+    pub(crate) fn usable(self) -> Self {
         let defaults = Self::default();
         let usable = |v: f32, default: f32| {
             if v.is_finite() {
@@ -230,7 +230,7 @@ impl Default for LearningRates {
 }
 
 /// The costs the budget predicts with: a [`Calibration`] (the prior) and what was learned
-/// from measured frames (see the [module docs](self)). Kept by [`CostPlugin`](super::CostPlugin).
+/// from measured frames (see the module docs). Kept by [`CostPlugin`](super::CostPlugin).
 #[derive(Resource, Clone, Debug)]
 pub struct CostModel {
     calibration: Calibration,
@@ -314,25 +314,25 @@ impl CostModel {
     }
 
     /// Forgets what was learned (the calibration stays).
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         self.set_calibration(self.calibration.clone());
     }
 
     /// The overlap assumed before anything is learned.
-    pub fn set_prior_overlap(&mut self, overlap: FrameOverlap) {
+    pub(crate) fn set_prior_overlap(&mut self, overlap: FrameOverlap) {
         self.prior_overlap = overlap;
         self.reset();
     }
 
     /// The learning's time constants; changing them forgets what was learned.
-    pub fn set_rates(&mut self, rates: LearningRates) {
+    pub(crate) fn set_rates(&mut self, rates: LearningRates) {
         self.rates = rates.usable();
         self.reset();
     }
 
     /// The factors on the calibration's per-primitive costs the budget prices with now
     /// (learned costs and current speed).
-    pub fn family_scales(&self) -> FamilyScales {
+    pub(crate) fn family_scales(&self) -> FamilyScales {
         let t = self.render.costs();
         let speed = f64::from(self.render.speed());
         let s = |j: usize| (t[j] * speed) as f32;
@@ -347,12 +347,12 @@ impl CostModel {
     }
 
     /// Per-primitive costs as the budget prices them now.
-    pub fn primitive_costs(&self) -> PrimitiveCosts {
+    pub(crate) fn primitive_costs(&self) -> PrimitiveCosts {
         PrimitiveCosts::scaled(&self.calibration, self.family_scales())
     }
 
     /// The render world's predicted fixed time per frame, seconds.
-    pub fn render_fixed(&self) -> f32 {
+    pub(crate) fn render_fixed(&self) -> f32 {
         (self.render.costs()[0] * f64::from(self.render.speed())) as f32
     }
 
@@ -397,7 +397,7 @@ impl CostModel {
 
     /// Learns from a measured frame, if its prediction is still kept. Returns whether it
     /// was learned from: a frame that was not complete, whose times are not finite and
-    /// positive, that was predicted to draw nothing, or that stalled ([`is_stall`]) is
+    /// positive, that was predicted to draw nothing, or that stalled (`is_stall`) is
     /// not.
     pub fn learn(&mut self, sample: &FrameSample) -> bool {
         while self
@@ -470,7 +470,7 @@ impl CostModel {
     /// primitives were predicted below [`MIN_PASS_PART`] of the pass (the pass's own
     /// overhead would then pass for their cost), nor for a time that is not finite and
     /// positive.
-    pub fn learn_pass(&mut self, seconds: f32) -> bool {
+    pub(crate) fn learn_pass(&mut self, seconds: f32) -> bool {
         let Some(last) = &self.last else {
             return false;
         };
@@ -489,7 +489,7 @@ impl CostModel {
     /// How the frames' work scatters around its prediction (`ln(measured / predicted)`
     /// of [`FrameSample::work_interval`] against [`FramePrediction::frame_time`]): what a
     /// deadline needs as its margin.
-    pub fn frame_spread(&self) -> &LogSpread {
+    pub(crate) fn frame_spread(&self) -> &LogSpread {
         &self.frame_spread
     }
 
@@ -522,25 +522,25 @@ impl CostModel {
 
 /// The frame spread before anything is measured: 5% (identical frames vary by 3–11% on
 /// the machines this was measured on).
-pub const FRAME_SPREAD_PRIOR: f32 = 0.05;
+pub(crate) const FRAME_SPREAD_PRIOR: f32 = 0.05;
 /// The smallest frame spread the model assumes: 1%.
-pub const FRAME_SPREAD_FLOOR: f32 = 0.01;
+pub(crate) const FRAME_SPREAD_FLOOR: f32 = 0.01;
 /// The frame spread follows about this many seconds of frames: a change of the machine's
 /// noise (measured here as regimes of 5–10 s) is followed within a few seconds, while at
 /// 10 frames a second the deviation is taken over some twenty frames, not a noisy handful
 /// (with one second, 1% of frames were let miss and 2–3% did).
-pub const FRAME_SPREAD_SECONDS: f32 = 2.0;
+pub(crate) const FRAME_SPREAD_SECONDS: f32 = 2.0;
 
 /// A frame whose interval is over this many times its prediction, and over
 /// [`STALL_SECONDS`], stalled.
-pub const STALL_FACTOR: f32 = 4.0;
+pub(crate) const STALL_FACTOR: f32 = 4.0;
 /// The shortest interval that counts as a stall, seconds.
-pub const STALL_SECONDS: f32 = 1.0;
+pub(crate) const STALL_SECONDS: f32 = 1.0;
 
 /// Whether a frame of `interval` seconds, predicted to take `predicted`, stalled (a
 /// debugger, a blocking load, a window dragged): its interval is over
 /// max([`STALL_FACTOR`] × predicted, [`STALL_SECONDS`]). A stall is not learned from.
-pub fn is_stall(interval: f32, predicted: f32) -> bool {
+pub(crate) fn is_stall(interval: f32, predicted: f32) -> bool {
     let predicted = if predicted.is_finite() {
         predicted
     } else {
@@ -551,7 +551,7 @@ pub fn is_stall(interval: f32, predicted: f32) -> bool {
 
 /// A pass time is learned from only when the primitives it drew were predicted to take at
 /// least this share of it.
-pub const MIN_PASS_PART: f32 = 0.25;
+pub(crate) const MIN_PASS_PART: f32 = 0.25;
 
 /// [`render_regressors`] of what the forest pass draws: no fixed part, no meshes.
 fn pass_regressors(calibrated: &FamilyTimes) -> [f64; RENDER_PARAMETERS] {

@@ -17,7 +17,7 @@
 /// (its weighted mean square). So the prior always weighs the same against the data,
 /// whatever the units, and a regressor that stays 0 keeps its prior exactly.
 #[derive(Clone, Debug, PartialEq)]
-pub struct PriorRegression<const N: usize> {
+pub(crate) struct PriorRegression<const N: usize> {
     prior: [f64; N],
     /// Each parameter stays within these bounds (after the solve).
     lower: [f64; N],
@@ -37,7 +37,12 @@ pub struct PriorRegression<const N: usize> {
 impl<const N: usize> PriorRegression<N> {
     /// A regression starting at (and regularised toward) `prior`, each parameter kept
     /// within `lower..=upper`, forgetting with `time_constant` seconds.
-    pub fn new(prior: [f64; N], lower: [f64; N], upper: [f64; N], time_constant: f64) -> Self {
+    pub(crate) fn new(
+        prior: [f64; N],
+        lower: [f64; N],
+        upper: [f64; N],
+        time_constant: f64,
+    ) -> Self {
         let theta = core::array::from_fn(|j| prior[j].clamp(lower[j], upper[j]));
         Self {
             prior: theta,
@@ -54,23 +59,18 @@ impl<const N: usize> PriorRegression<N> {
     }
 
     /// The current parameters.
-    pub fn parameters(&self) -> [f64; N] {
+    pub(crate) fn parameters(&self) -> [f64; N] {
         self.theta
     }
 
-    /// The prior.
-    pub fn prior(&self) -> [f64; N] {
-        self.prior
-    }
-
     /// `θ·x`.
-    pub fn predict(&self, x: &[f64; N]) -> f64 {
+    pub(crate) fn predict(&self, x: &[f64; N]) -> f64 {
         self.theta.iter().zip(x).map(|(t, x)| t * x).sum()
     }
 
     /// Learns one observation `y ≈ θ·x` with weight `w` (0..=1), `dt` seconds after the
     /// previous one. Non-finite inputs, a negative weight or `dt` are ignored.
-    pub fn update(&mut self, x: &[f64; N], y: f64, w: f64, dt: f64) {
+    pub(crate) fn update(&mut self, x: &[f64; N], y: f64, w: f64, dt: f64) {
         if !(y.is_finite() && w.is_finite() && w >= 0.0 && dt.is_finite() && dt >= 0.0)
             || x.iter().any(|v| !v.is_finite())
         {
@@ -114,14 +114,6 @@ impl<const N: usize> PriorRegression<N> {
             });
         }
     }
-
-    /// Forgets everything learned: back to the prior.
-    pub fn reset(&mut self) {
-        *self = Self {
-            prior_frames: self.prior_frames,
-            ..Self::new(self.prior, self.lower, self.upper, self.time_constant)
-        };
-    }
 }
 
 /// Gaussian elimination with partial pivoting; `None` when singular.
@@ -155,18 +147,18 @@ fn solve<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; 
 /// proportion to its error. The typical error follows about a second of observations,
 /// each capped so that one stall does not open the gate for the next.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RobustGate {
+pub(crate) struct RobustGate {
     typical: f32,
     floor: f32,
 }
 
 /// Observations within this many typical errors of the prediction count fully.
-pub const HUBER_ERRORS: f32 = 3.0;
+pub(crate) const HUBER_ERRORS: f32 = 3.0;
 
 impl RobustGate {
     /// A gate whose typical error starts at `initial` and is never taken below `floor`
     /// (a source with no noise at all would otherwise call any change an outlier).
-    pub fn new(initial: f32, floor: f32) -> Self {
+    pub(crate) fn new(initial: f32, floor: f32) -> Self {
         Self {
             typical: initial,
             floor,
@@ -174,12 +166,12 @@ impl RobustGate {
     }
 
     /// The typical error now (never below the floor).
-    pub fn typical(&self) -> f32 {
+    pub(crate) fn typical(&self) -> f32 {
         self.typical.max(self.floor)
     }
 
     /// The weight of an observation `error` away from the prediction (0..=1).
-    pub fn weight(&self, error: f32) -> f32 {
+    pub(crate) fn weight(&self, error: f32) -> f32 {
         let bound = HUBER_ERRORS * self.typical.max(self.floor);
         let error = error.abs();
         if error <= bound || !error.is_finite() {
@@ -190,7 +182,7 @@ impl RobustGate {
     }
 
     /// Takes the error of an observation `dt` seconds after the previous one.
-    pub fn observe(&mut self, error: f32, dt: f32) {
+    pub(crate) fn observe(&mut self, error: f32, dt: f32) {
         if !(error.is_finite() && dt.is_finite() && dt > 0.0) {
             return;
         }
@@ -206,7 +198,7 @@ impl RobustGate {
 /// that long. Each observation is capped at four deviations from the mean, so that one
 /// stall does not open the spread for the frames after it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LogSpread {
+pub(crate) struct LogSpread {
     mean: f32,
     variance: f32,
     seconds: f32,
@@ -216,7 +208,7 @@ pub struct LogSpread {
 impl LogSpread {
     /// A spread starting at `sigma` (a log deviation: 0.05 is about 5%), never taken below
     /// `floor`, following about `seconds` of observations.
-    pub fn new(sigma: f32, floor: f32, seconds: f32) -> Self {
+    pub(crate) fn new(sigma: f32, floor: f32, seconds: f32) -> Self {
         Self {
             mean: 0.0,
             variance: sigma * sigma,
@@ -225,30 +217,26 @@ impl LogSpread {
         }
     }
 
-    /// The time constant, seconds.
-    pub fn seconds(&self) -> f32 {
-        self.seconds
-    }
-
     /// The mean log ratio of measured to predicted (0: unbiased).
-    pub fn mean(&self) -> f32 {
+    #[cfg(test)]
+    pub(crate) fn mean(&self) -> f32 {
         self.mean
     }
 
     /// The standard deviation of the log ratio (never below the floor).
-    pub fn sigma(&self) -> f32 {
+    pub(crate) fn sigma(&self) -> f32 {
         self.variance.sqrt().max(self.floor)
     }
 
     /// The factor on a prediction that the measurement stays below with `z` standard
     /// deviations to spare: `exp(mean + z·σ)`.
-    pub fn quantile_factor(&self, z: f32) -> f32 {
+    pub(crate) fn quantile_factor(&self, z: f32) -> f32 {
         (self.mean + z * self.sigma()).exp()
     }
 
     /// Takes a measurement and its prediction, `dt` seconds after the previous one.
     /// Non-finite or non-positive times are ignored.
-    pub fn observe(&mut self, predicted: f32, measured: f32, dt: f32) {
+    pub(crate) fn observe(&mut self, predicted: f32, measured: f32, dt: f32) {
         let positive = |t: f32| t.is_finite() && t > 0.0;
         if !(positive(predicted) && positive(measured) && positive(dt)) {
             return;
@@ -294,7 +282,7 @@ const MAX_STATE: usize = 8;
 /// counts at most [`MAX_DRIFT_SECONDS`] of the time since the previous frame: a frame
 /// that came after a long stall is no more trusted than one that came on time.
 #[derive(Clone, Debug, PartialEq)]
-pub struct CostFilter<const N: usize> {
+pub(crate) struct CostFilter<const N: usize> {
     prior: [f64; N],
     lower: [f64; N],
     upper: [f64; N],
@@ -309,10 +297,10 @@ pub struct CostFilter<const N: usize> {
 }
 
 /// The most one frame moves the speed or any one cost, as a factor either way.
-pub const MAX_STEP_FACTOR: f64 = 1.5;
+pub(crate) const MAX_STEP_FACTOR: f64 = 1.5;
 
 /// The most time between two frames that the random walks count, seconds.
-pub const MAX_DRIFT_SECONDS: f32 = 1.0;
+pub(crate) const MAX_DRIFT_SECONDS: f32 = 1.0;
 
 /// One spread of the calibration's uncertainty, as a log factor: about ×3 either way.
 const PRIOR_SPREAD: f64 = 1.1;
@@ -324,7 +312,7 @@ impl<const N: usize> CostFilter<N> {
     /// A filter starting at `prior`, each cost kept within `lower..=upper` (clamped to
     /// positive values), the speed following the machine within `speed_seconds` and the
     /// costs within `costs_seconds`.
-    pub fn new(
+    pub(crate) fn new(
         prior: [f64; N],
         lower: [f64; N],
         upper: [f64; N],
@@ -359,29 +347,29 @@ impl<const N: usize> CostFilter<N> {
     }
 
     /// How much slower (above 1) the machine runs now than the costs say.
-    pub fn speed(&self) -> f32 {
+    pub(crate) fn speed(&self) -> f32 {
         self.state[0].exp() as f32
     }
 
     /// What each regressor costs (at speed 1).
-    pub fn costs(&self) -> [f64; N] {
+    pub(crate) fn costs(&self) -> [f64; N] {
         core::array::from_fn(|j| self.prior[j] * self.state[j + 1].exp())
     }
 
     /// `θ·x`: the cost at speed 1.
-    pub fn base(&self, x: &[f64; N]) -> f64 {
+    pub(crate) fn base(&self, x: &[f64; N]) -> f64 {
         self.costs().iter().zip(x).map(|(c, x)| c * x).sum()
     }
 
     /// The predicted time of `x`: `speed · θ·x`, seconds.
-    pub fn predict(&self, x: &[f64; N]) -> f32 {
+    pub(crate) fn predict(&self, x: &[f64; N]) -> f32 {
         (self.base(x) * self.state[0].exp()) as f32
     }
 
     /// Learns that `x` took `measured` seconds, `dt` seconds after the previous frame.
     /// Times that are not finite and positive, or a regressor that is not finite, are
     /// ignored.
-    pub fn learn(&mut self, x: &[f64; N], measured: f32, dt: f32) {
+    pub(crate) fn learn(&mut self, x: &[f64; N], measured: f32, dt: f32) {
         if !(usable(x, measured) && dt.is_finite() && dt > 0.0) {
             return;
         }
@@ -399,7 +387,7 @@ impl<const N: usize> CostFilter<N> {
     /// rise and fall together when the scene's mix hardly changes). Nothing drifts and
     /// the typical error is the whole's; an error beyond [`HUBER_ERRORS`] of it always
     /// counts as at the bound. Ignored like [`learn`](Self::learn)'s bad input.
-    pub fn learn_part(&mut self, x: &[f64; N], measured: f32) {
+    pub(crate) fn learn_part(&mut self, x: &[f64; N], measured: f32) {
         if usable(x, measured) {
             self.correct(x, measured, false);
         }
@@ -501,17 +489,6 @@ impl<const N: usize> CostFilter<N> {
         for j in 1..=N {
             self.covariance[j][j] += costs;
         }
-    }
-
-    /// Forgets everything learned.
-    pub fn reset(&mut self) {
-        *self = Self::new(
-            self.prior,
-            self.lower,
-            self.upper,
-            self.speed_seconds as f32,
-            self.costs_seconds as f32,
-        );
     }
 }
 

@@ -15,14 +15,14 @@ const RECENT_FRAMES: usize = 32;
 
 /// How recent frames were paced, as measured. Kept by [`CostPlugin`](super::CostPlugin).
 #[derive(Resource, Clone, Debug, Default)]
-pub struct MeasuredPacing {
+pub(crate) struct MeasuredPacing {
     /// (waited for the display, interval) of recent usable frames, oldest first.
     recent: VecDeque<(bool, f32)>,
 }
 
 impl MeasuredPacing {
     /// Takes a measured frame (unusable ones are ignored).
-    pub fn observe(&mut self, sample: &FrameSample) {
+    pub(crate) fn observe(&mut self, sample: &FrameSample) {
         if !sample.is_usable() {
             return;
         }
@@ -34,7 +34,7 @@ impl MeasuredPacing {
     }
 
     /// The share of recent frames that waited for the display.
-    pub fn waited_share(&self) -> f32 {
+    pub(crate) fn waited_share(&self) -> f32 {
         let waited = self.recent.iter().filter(|(w, _)| *w).count();
         waited as f32 / self.recent.len().max(1) as f32
     }
@@ -42,7 +42,7 @@ impl MeasuredPacing {
     /// The refresh period that paces the frames, seconds: when most recent frames waited
     /// and their intervals follow one period's grid (snapped to `hint`, the monitor's
     /// period, when it fits). `None` when frames are not paced.
-    pub fn period(&self, hint: Option<f32>) -> Option<f32> {
+    pub(crate) fn period(&self, hint: Option<f32>) -> Option<f32> {
         if self.waited_share() <= 0.5 {
             return None;
         }

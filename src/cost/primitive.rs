@@ -27,10 +27,10 @@ pub struct FamilyScales {
 
 impl FamilyScales {
     /// Every family as calibrated.
-    pub const ONE: Self = Self::uniform(1.0);
+    pub(crate) const ONE: Self = Self::uniform(1.0);
 
     /// The same factor for every family.
-    pub const fn uniform(scale: f32) -> Self {
+    pub(crate) const fn uniform(scale: f32) -> Self {
         Self {
             triangles: scale,
             triangle_pixels: scale,
@@ -79,7 +79,7 @@ impl FamilyTimes {
 
     /// Each part divided by its family's factor: the same selection priced by the
     /// calibration alone. A factor that is not finite and positive counts as 1.
-    pub fn unscaled(&self, scales: FamilyScales) -> Self {
+    pub(crate) fn unscaled(&self, scales: FamilyScales) -> Self {
         let over = |t: f32, s: f32| if s.is_finite() && s > 0.0 { t / s } else { t };
         Self {
             triangles: over(self.triangles, scales.triangles),
@@ -106,7 +106,7 @@ impl core::ops::AddAssign for FamilyTimes {
 /// Predicted time of primitives, per primitive (fixed per-frame parts are accounted for
 /// once per frame, not here), in seconds.
 #[derive(Clone, Debug, PartialEq)]
-pub struct PrimitiveCosts {
+pub(crate) struct PrimitiveCosts {
     /// Per triangle.
     pub triangle: f32,
     /// Per covered pixel of triangles.
@@ -135,13 +135,13 @@ pub struct PrimitiveCosts {
 impl PrimitiveCosts {
     /// The per-primitive parts of a calibration, each scaled by `scale` (a measured speed
     /// of this machine against the calibration's).
-    pub fn from_calibration(calibration: &Calibration, scale: f32) -> Self {
+    pub(crate) fn from_calibration(calibration: &Calibration, scale: f32) -> Self {
         Self::scaled(calibration, FamilyScales::uniform(scale))
     }
 
     /// The per-primitive parts of a calibration, each family scaled by its factor (what
     /// the cost model learned). A factor that is not finite and positive counts as 1.
-    pub fn scaled(calibration: &Calibration, scales: FamilyScales) -> Self {
+    pub(crate) fn scaled(calibration: &Calibration, scales: FamilyScales) -> Self {
         let factor = |s: f32| if s.is_finite() && s > 0.0 { s } else { 1.0 };
         let clean = |x: f32, s: f32| {
             if x.is_finite() {
@@ -169,7 +169,7 @@ impl PrimitiveCosts {
 
     /// The same costs with each object's coverage capped at `viewport_pixels` (ignored
     /// unless positive).
-    pub fn within_viewport(mut self, viewport_pixels: f32) -> Self {
+    pub(crate) fn within_viewport(mut self, viewport_pixels: f32) -> Self {
         if viewport_pixels > 0.0 {
             self.max_pixels = viewport_pixels;
         }
@@ -182,25 +182,25 @@ impl PrimitiveCosts {
     }
 
     /// `count` triangles of `area` pixels each, covering at most a screenful together.
-    pub fn triangles(&self, count: u32, area: f32) -> f32 {
+    pub(crate) fn triangles(&self, count: u32, area: f32) -> f32 {
         let n = count as f32;
         n * self.triangle + self.triangle_pixel * (n * area.max(0.0)).min(self.max_pixels)
     }
 
     /// `count` lines `width` pixels wide, `length` pixels long in total, covering at most a
     /// screenful together.
-    pub fn lines(&self, width: u32, count: u32, length: f32) -> f32 {
+    pub(crate) fn lines(&self, width: u32, count: u32, length: f32) -> f32 {
         let covered = (length * width as f32).min(self.max_pixels);
         count as f32 * Self::pick(&self.line, width) + Self::pick(&self.line_pixel, width) * covered
     }
 
     /// One mesh of `triangles` triangles on Bevy's own path.
-    pub fn mesh(&self, triangles: u32) -> f32 {
+    pub(crate) fn mesh(&self, triangles: u32) -> f32 {
         self.mesh_draw + triangles as f32 * self.mesh_triangle
     }
 
     /// The fragments of meshes on Bevy's path covering `pixels` (capped at the viewport's).
-    pub fn mesh_pixels(&self, pixels: f32) -> f32 {
+    pub(crate) fn mesh_pixels(&self, pixels: f32) -> f32 {
         if pixels.is_finite() && pixels > 0.0 {
             pixels.min(self.max_pixels) * self.mesh_pixel
         } else {
@@ -209,7 +209,7 @@ impl PrimitiveCosts {
     }
 
     /// `count` points of `size` pixels.
-    pub fn points(&self, size: u32, count: u32) -> f32 {
+    pub(crate) fn points(&self, size: u32, count: u32) -> f32 {
         let s = size as f32;
         count as f32 * (Self::pick(&self.point, size) + Self::pick(&self.point_pixel, size) * s * s)
     }

@@ -13,7 +13,7 @@ use crate::tree::{BoundingSphere, Bounds, TreeModel};
 
 /// Where a volume lies against the view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Containment {
+pub(crate) enum Containment {
     /// Entirely outside one of the planes.
     Outside,
     /// Crosses at least one plane.
@@ -24,12 +24,12 @@ pub enum Containment {
 
 /// The six planes of a view frustum, each `(normal, d)` with `normal · p + d ≥ 0` inside.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FrustumPlanes(pub [Vec4; 6]);
+pub(crate) struct FrustumPlanes(pub [Vec4; 6]);
 
 impl FrustumPlanes {
     /// The planes of a clip-from-world (view-projection) matrix with wgpu's clip space
     /// (x, y in [-w, w], z in [0, w]); works with Bevy's reverse-Z and infinite far plane.
-    pub fn from_clip_from_world(m: Mat4) -> Self {
+    pub(crate) fn from_clip_from_world(m: Mat4) -> Self {
         let rows = [m.row(0), m.row(1), m.row(2), m.row(3)];
         let planes = [
             rows[3] + rows[0],
@@ -46,7 +46,7 @@ impl FrustumPlanes {
     }
 
     /// Where an axis-aligned box lies. An empty box is outside.
-    pub fn classify_box(&self, bounds: &Bounds) -> Containment {
+    pub(crate) fn classify_box(&self, bounds: &Bounds) -> Containment {
         if bounds.is_empty() {
             return Containment::Outside;
         }
@@ -68,7 +68,7 @@ impl FrustumPlanes {
     }
 
     /// Whether a sphere is at least partly inside.
-    pub fn intersects_sphere(&self, sphere: &BoundingSphere) -> bool {
+    pub(crate) fn intersects_sphere(&self, sphere: &BoundingSphere) -> bool {
         let center = Vec3A::from(sphere.center);
         self.0
             .iter()
@@ -78,7 +78,7 @@ impl FrustumPlanes {
 
 /// The parts of a tree type that culling tests, in the tree's own space.
 #[derive(Clone, Debug, PartialEq)]
-pub struct CullShape {
+pub(crate) struct CullShape {
     /// Box around the whole tree.
     pub bounds: Bounds,
     /// Box around the trunk.
@@ -106,7 +106,7 @@ impl From<&TreeModel> for CullShape {
 /// this frame (indexed like [`ForestInstances`](crate::instance::ForestInstances));
 /// culling, which runs after it, reads it.
 #[derive(Resource, Clone, Debug, Default, PartialEq)]
-pub struct MovedShapes {
+pub(crate) struct MovedShapes {
     /// Per instance: index into `shapes`, or `NOT_MOVED`.
     slot: Vec<u32>,
     shapes: Vec<CullShape>,
@@ -119,14 +119,14 @@ const NOT_MOVED: u32 = u32::MAX;
 
 impl MovedShapes {
     /// Forgets every moved shape (keeps the storage).
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.slot.clear();
         self.owner.clear();
         self.used = 0;
     }
 
     /// Forgets `instance`'s moved shape (it is back at rest), if it has one.
-    pub fn remove(&mut self, instance: usize) {
+    pub(crate) fn remove(&mut self, instance: usize) {
         let Some(&s) = self.slot.get(instance) else {
             return;
         };
@@ -147,7 +147,7 @@ impl MovedShapes {
 
     /// Takes `instance` out as `Vec::swap_remove` does from `instances` instances: the
     /// last instance (and its moved shape) takes its index.
-    pub fn swap_remove(&mut self, instance: usize, instances: usize) {
+    pub(crate) fn swap_remove(&mut self, instance: usize, instances: usize) {
         self.remove(instance);
         let Some(last) = instances.checked_sub(1) else {
             return;
@@ -163,17 +163,19 @@ impl MovedShapes {
     }
 
     /// Instances with a moved shape.
-    pub fn len(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
         self.used
     }
 
     /// Whether no instance moved.
-    pub fn is_empty(&self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn is_empty(&self) -> bool {
         self.used == 0
     }
 
     /// The moved shape of `instance`, if it has one.
-    pub fn get(&self, instance: usize) -> Option<&CullShape> {
+    pub(crate) fn get(&self, instance: usize) -> Option<&CullShape> {
         match self.slot.get(instance) {
             Some(&s) if s != NOT_MOVED => Some(&self.shapes[s as usize]),
             _ => None,
@@ -182,7 +184,7 @@ impl MovedShapes {
 
     /// The shape to fill for `instance` (its previous contents are unspecified; set every
     /// field).
-    pub fn shape_mut(&mut self, instance: usize) -> &mut CullShape {
+    pub(crate) fn shape_mut(&mut self, instance: usize) -> &mut CullShape {
         if self.slot.len() <= instance {
             self.slot.resize(instance + 1, NOT_MOVED);
         }
@@ -203,7 +205,7 @@ impl MovedShapes {
 }
 
 /// The box around `bounds` transformed by `transform`.
-pub fn transform_bounds(transform: &Affine3A, bounds: &Bounds) -> Bounds {
+pub(crate) fn transform_bounds(transform: &Affine3A, bounds: &Bounds) -> Bounds {
     if bounds.is_empty() {
         return Bounds::EMPTY;
     }
@@ -236,7 +238,7 @@ fn transform_sphere(transform: &Affine3A, sphere: &BoundingSphere) -> BoundingSp
 
 /// One instance to cull: its transform and which [`CullShape`] it has.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CullInstance {
+pub(crate) struct CullInstance {
     /// Local → world.
     pub transform: Affine3A,
     /// Index into the shapes slice.
@@ -245,7 +247,7 @@ pub struct CullInstance {
 
 /// Visibility of one instance.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum InstanceVisibility {
+pub(crate) enum InstanceVisibility {
     /// Not drawn.
     #[default]
     Invisible,
@@ -263,7 +265,7 @@ pub enum InstanceVisibility {
 
 /// One frame's culling answer.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct CullResult {
+pub(crate) struct CullResult {
     /// Per instance, in instance order.
     pub visibility: Vec<InstanceVisibility>,
     /// Group visibility bits of partially visible instances (bit `g` of the words
@@ -273,7 +275,7 @@ pub struct CullResult {
 
 impl CullResult {
     /// Whether leaf group `group` of instance `instance` is visible.
-    pub fn group_visible(&self, instance: usize, group: usize) -> bool {
+    pub(crate) fn group_visible(&self, instance: usize, group: usize) -> bool {
         match self.visibility[instance] {
             InstanceVisibility::Invisible => false,
             InstanceVisibility::Full => true,
@@ -284,7 +286,8 @@ impl CullResult {
     }
 
     /// Whether the trunk of `instance` is visible.
-    pub fn trunk_visible(&self, instance: usize) -> bool {
+    #[cfg(test)]
+    pub(crate) fn trunk_visible(&self, instance: usize) -> bool {
         match self.visibility[instance] {
             InstanceVisibility::Invisible => false,
             InstanceVisibility::Full => true,
@@ -341,7 +344,8 @@ fn test_instance(
 
 /// The reference: every instance tested on its own, moved instances with their
 /// [`MovedShapes`].
-pub fn cull_brute_force(
+#[cfg(any(test, feature = "testing"))]
+pub(crate) fn cull_brute_force(
     planes: &FrustumPlanes,
     instances: &[CullInstance],
     shapes: &[CullShape],
@@ -365,7 +369,7 @@ struct Node {
 
 /// How one node of the hierarchy was seen last frame, for the debug view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum NodeVisibility {
+pub(crate) enum NodeVisibility {
     /// Not tested (empty, or below a node already decided).
     Untested,
     /// Outside the view.
@@ -383,7 +387,7 @@ fn instance_bounds(instance: &CullInstance, shapes: &[CullShape]) -> Bounds {
 
 /// A quadtree of boxes over the populated area.
 #[derive(Clone, Debug)]
-pub struct BoxHierarchy {
+pub(crate) struct BoxHierarchy {
     depth: u32,
     grid: Grid,
     /// Level-order complete quadtree: level `l` starts at `(4^l − 1) / 3`.
@@ -435,7 +439,7 @@ impl BoxHierarchy {
     /// Builds a hierarchy of `depth` levels below the root (4^depth leaves, each owning an
     /// equal cell of `area`'s XZ rectangle) over `instances`. Instances outside the area
     /// go to the nearest border cell. A depth above 10 is treated as 10.
-    pub fn build(
+    pub(crate) fn build(
         depth: u32,
         area: &Bounds,
         instances: &[CullInstance],
@@ -512,7 +516,7 @@ impl BoxHierarchy {
     /// `instances` (the same slice as at build time, otherwise unchanged): their boxes and
     /// every box above them, O(moved × depth). Returns `false`, changing nothing, when a
     /// moved instance left its leaf cell (or its box appeared or vanished): build anew.
-    pub fn refit(
+    pub(crate) fn refit(
         &mut self,
         moved: &[u32],
         instances: &[CullInstance],
@@ -547,7 +551,7 @@ impl BoxHierarchy {
     /// nothing, when an added instance stands farther outside the hierarchy's area than a
     /// quarter of its width, or the edits touch over an eighth of the instances: build
     /// anew.
-    pub fn edit(
+    pub(crate) fn edit(
         &mut self,
         edits: &LayoutEdits,
         instances: &[CullInstance],
@@ -612,7 +616,7 @@ impl BoxHierarchy {
 
     /// Whether `other` has the same boxes over the same cells, holding the same instances
     /// (as a build over the same instances of other shapes does).
-    pub fn same_cells(&self, other: &Self) -> bool {
+    pub(crate) fn same_cells(&self, other: &Self) -> bool {
         self.depth == other.depth
             && self.grid.min == other.grid.min
             && self.grid.size == other.grid.size
@@ -620,13 +624,13 @@ impl BoxHierarchy {
     }
 
     /// How many edits ([`edit`](Self::edit)) the hierarchy followed since it was built.
-    pub fn edits(&self) -> u64 {
+    pub(crate) fn edits(&self) -> u64 {
         self.edits
     }
 
     /// The edit that last changed which instances are under `node` (counting from 1; 0
     /// when none did since the build).
-    pub fn node_edit(&self, node: usize) -> u64 {
+    pub(crate) fn node_edit(&self, node: usize) -> u64 {
         self.node_edits[node]
     }
 
@@ -708,13 +712,14 @@ impl BoxHierarchy {
     }
 
     /// Levels below the root.
-    pub fn depth(&self) -> u32 {
+    pub(crate) fn depth(&self) -> u32 {
         self.depth
     }
 
     /// Every node's box and how it was seen by the last [`cull`](Self::cull), skipping
     /// empty (invalid) nodes — for the debug view.
-    pub fn nodes(&self) -> impl Iterator<Item = (Bounds, NodeVisibility)> + '_ {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn nodes(&self) -> impl Iterator<Item = (Bounds, NodeVisibility)> + '_ {
         self.nodes
             .iter()
             .zip(&self.node_visibility)
@@ -727,7 +732,7 @@ impl BoxHierarchy {
     /// visible; the hierarchy's boxes stay those of the trees at rest, so a tree swaying
     /// across the edge of a box that is entirely outside the view is missed until it
     /// comes back (a sway is a fraction of a tree, boxes hold many).
-    pub fn cull(
+    pub(crate) fn cull(
         &mut self,
         planes: &FrustumPlanes,
         instances: &[CullInstance],
@@ -777,30 +782,30 @@ impl BoxHierarchy {
 
     /// Number of nodes (level order: node 0 is the root, a node's children follow its
     /// level's nodes; see [`children`](Self::children)).
-    pub fn node_count(&self) -> usize {
+    pub(crate) fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
     /// The box of `node` around its instances at rest ([`Bounds::EMPTY`] when it holds
     /// none).
-    pub fn node_bounds(&self, node: usize) -> Bounds {
+    pub(crate) fn node_bounds(&self, node: usize) -> Bounds {
         self.nodes[node].bounds
     }
 
     /// The instances below `node` (indices into the culled instances).
-    pub fn node_instances(&self, node: usize) -> &[u32] {
+    pub(crate) fn node_instances(&self, node: usize) -> &[u32] {
         let (start, end) = self.nodes[node].instances;
         &self.order[start as usize..end as usize]
     }
 
     /// How `node` was seen by the last [`cull`](Self::cull): the children of a node seen
     /// entirely inside are [`NodeVisibility::Untested`] (and inside too).
-    pub fn node_visibility(&self, node: usize) -> NodeVisibility {
+    pub(crate) fn node_visibility(&self, node: usize) -> NodeVisibility {
         self.node_visibility[node]
     }
 
     /// The four children of `node`, or `None` for a leaf box.
-    pub fn children(&self, node: usize) -> Option<Range<usize>> {
+    pub(crate) fn children(&self, node: usize) -> Option<Range<usize>> {
         let level = self.level_of(node);
         (level < self.depth).then(|| {
             let first = level_start(level + 1) + 4 * (node - level_start(level));
@@ -809,7 +814,7 @@ impl BoxHierarchy {
     }
 
     /// The level of `node` (0 for the root, [`depth`](Self::depth) for leaf boxes).
-    pub fn level_of(&self, node: usize) -> u32 {
+    pub(crate) fn level_of(&self, node: usize) -> u32 {
         let mut level = 0;
         while level < self.depth && node >= level_start(level + 1) {
             level += 1;
@@ -818,7 +823,8 @@ impl BoxHierarchy {
     }
 
     /// Instances grouped by leaf, as a range of instance indices per leaf (for reports).
-    pub fn leaf_ranges(&self) -> impl Iterator<Item = Range<u32>> + '_ {
+    #[cfg(test)]
+    pub(crate) fn leaf_ranges(&self) -> impl Iterator<Item = Range<u32>> + '_ {
         let first_leaf = level_start(self.depth);
         self.nodes[first_leaf..]
             .iter()

@@ -13,9 +13,27 @@ use crate::tree::{Bounds, TreeModel};
 
 /// The view culling tests against. The camera the budget follows gets one automatically
 /// from its Bevy `Frustum` (with the `render` feature; see
-/// [`BudgetView`](crate::view::BudgetView)); headless apps insert it themselves.
+/// [`BudgetView`](crate::view::BudgetView)); headless apps insert it themselves, next to
+/// a [`LodView`](crate::view::LodView):
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_sherwood::culling::CullView;
+/// let eye = Vec3::new(0.0, 2.0, 10.0);
+/// let clip_from_world = Mat4::perspective_infinite_reverse_rh(1.2, 16.0 / 9.0, 0.1)
+///     * Mat4::look_at_rh(eye, Vec3::ZERO, Vec3::Y);
+/// let view = CullView::from_clip_from_world(clip_from_world);
+/// ```
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
-pub struct CullView(pub FrustumPlanes);
+pub struct CullView(pub(crate) FrustumPlanes);
+
+impl CullView {
+    /// The view of a camera whose `clip_from_world` (projection times view) matrix this
+    /// is: the six planes of its frustum.
+    pub fn from_clip_from_world(clip_from_world: Mat4) -> Self {
+        Self(FrustumPlanes::from_clip_from_world(clip_from_world))
+    }
+}
 
 /// The culling state of the instances in
 /// [`ForestInstances`](crate::instance::ForestInstances): instance `i` has visibility
@@ -24,13 +42,13 @@ pub struct CullView(pub FrustumPlanes);
 pub struct ForestCulling {
     /// Every instance's transform and shape (its model's index in
     /// [`ForestInstances::model_ids`]).
-    pub instances: Vec<CullInstance>,
+    pub(crate) instances: Vec<CullInstance>,
     /// The culling shape of every model (empty while it loads, or when it failed).
-    pub shapes: Vec<CullShape>,
+    pub(crate) shapes: Vec<CullShape>,
     /// The hierarchy, once there are instances.
-    pub hierarchy: Option<BoxHierarchy>,
+    pub(crate) hierarchy: Option<BoxHierarchy>,
     /// This frame's answer.
-    pub result: CullResult,
+    pub(crate) result: CullResult,
     /// `(instance layout, the instances' models version, depth)` the hierarchy was built
     /// for.
     built: Option<(u64, u64, u32)>,
@@ -49,15 +67,20 @@ pub struct ForestCulling {
 impl ForestCulling {
     /// The [`ForestInstances::layout_version`] that `result` is indexed by (`None` before
     /// the first hierarchy).
-    pub fn layout_version(&self) -> Option<u64> {
+    pub(crate) fn layout_version(&self) -> Option<u64> {
         self.built.map(|(layout, ..)| layout)
     }
 
     /// Changes whenever the hierarchy is built anew for another layout or depth (not when
     /// it follows an edit of the layout or a move, nor when only the models changed): box
     /// indices of an older version mean other boxes. `None` before the first hierarchy.
-    pub fn hierarchy_version(&self) -> Option<u64> {
+    pub(crate) fn hierarchy_version(&self) -> Option<u64> {
         self.built.map(|_| self.boxes_version)
+    }
+
+    /// Whether the hierarchy is built: there are instances, and culling runs.
+    pub fn is_built(&self) -> bool {
+        self.hierarchy.is_some()
     }
 
     /// How many of the instances' models are still loading (their instances are not
@@ -70,25 +93,20 @@ impl ForestCulling {
     /// that never loads: a typo'd path the asset server still waits on, an asset added by
     /// hand under a reserved handle that never came): their trees are not drawn, and a
     /// warning names them once.
-    pub fn models_stuck_loading(&self) -> u32 {
+    pub(crate) fn models_stuck_loading(&self) -> u32 {
         self.stuck
     }
 
     /// How many times the hierarchy was built, and how many times refitted for moved
     /// instances.
-    pub fn rebuilds_and_refits(&self) -> (u64, u64) {
+    #[cfg(test)]
+    pub(crate) fn rebuilds_and_refits(&self) -> (u64, u64) {
         (self.rebuilds, self.refits)
-    }
-
-    /// How many times the hierarchy followed an edit of the layout (trees planted or
-    /// felled) without being built anew.
-    pub fn edits_followed(&self) -> u64 {
-        self.edits
     }
 }
 
 /// A tree model still loading after this many seconds is warned about, once.
-pub const LOADING_WARNING_SECS: f32 = 10.0;
+pub(crate) const LOADING_WARNING_SECS: f32 = 10.0;
 
 /// How the box hierarchy is built.
 #[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
@@ -400,7 +418,7 @@ fn update_cull_views(
 /// Gizmo group for fully visible boxes, drawn dashed.
 #[cfg(feature = "render")]
 #[derive(Default, Reflect, GizmoConfigGroup)]
-pub struct FullyVisibleBoxes;
+pub(crate) struct FullyVisibleBoxes;
 
 #[cfg(feature = "render")]
 fn configure_debug_gizmos(mut store: ResMut<GizmoConfigStore>) {

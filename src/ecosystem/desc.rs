@@ -13,11 +13,11 @@ use crate::rng::SplitMix64;
 
 /// The largest instance scale an ecosystem may ask for: a tree a thousand times its
 /// model's size.
-pub const MAX_SCALE: f32 = 1000.0;
+pub(crate) const MAX_SCALE: f32 = 1000.0;
 
 /// How close two hand-placed instances may stand, metres: closer, an ecosystem is
 /// refused as one position typed twice.
-pub const MIN_HAND_PLACED_SPACING: f32 = 0.01;
+pub(crate) const MIN_HAND_PLACED_SPACING: f32 = 0.01;
 
 /// A Blinn-Phong material (thesis §3.1); colours are linear RGB.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -162,7 +162,7 @@ pub enum EcosystemError {
 
 /// One instance ready to spawn.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InstanceLayout {
+pub(crate) struct InstanceLayout {
     /// Index into [`EcosystemDesc::species`].
     pub species: usize,
     /// Local → world.
@@ -179,7 +179,7 @@ pub struct InstanceLayout {
 
 /// An ecosystem laid out: its terrain and every instance.
 #[derive(Clone, Debug)]
-pub struct EcosystemLayout {
+pub(crate) struct EcosystemLayout {
     /// The sampled terrain.
     pub terrain: Terrain,
     /// Every instance: rule-placed ones first, species by species, then hand-placed ones.
@@ -383,7 +383,7 @@ impl EcosystemDesc {
     }
 
     /// Builds the terrain and places every instance. Deterministic for a given seed.
-    pub fn layout(&self) -> Result<EcosystemLayout, EcosystemError> {
+    pub(crate) fn layout(&self) -> Result<EcosystemLayout, EcosystemError> {
         self.validate()?;
         let terrain = self.terrain.build()?;
         let mut rng = SplitMix64::new(self.seed ^ 0x00D1_CE5E_ED00);

@@ -3,21 +3,21 @@
 //! jittered-grid placement.
 
 mod desc;
-mod placement;
+pub(crate) mod placement;
 mod plugin;
 mod terrain;
 #[cfg(feature = "render")]
 mod terrain_material;
 
-pub use desc::{
-    EcosystemDesc, EcosystemError, EcosystemLayout, InstanceDesc, InstanceLayout, MAX_SCALE,
-    MIN_HAND_PLACED_SPACING, MaterialDesc, SpeciesEntry,
-};
-pub use placement::{Angles, Placement, Tilt, tilt_from_normal};
+pub use desc::{EcosystemDesc, EcosystemError, InstanceDesc, MaterialDesc, SpeciesEntry};
+
+pub use placement::{Angles, Tilt};
+
 pub use plugin::{
-    Ecosystem, EcosystemFileError, EcosystemLoader, EcosystemPlugin, Forest, ForestMembers,
-    ForestState, ForestTerrain, InForest,
+    Ecosystem, EcosystemFileError, EcosystemPlugin, Forest, ForestState, ForestTerrain, InForest,
 };
-pub use terrain::{FaultsDesc, Terrain, TerrainDesc, TerrainError};
+pub use plugin::{EcosystemLoader, ForestMembers};
+pub use terrain::Terrain;
+pub use terrain::{FaultsDesc, TerrainDesc, TerrainError};
 #[cfg(feature = "render")]
-pub use terrain_material::TerrainMaterial;
+pub(crate) use terrain_material::TerrainMaterial;

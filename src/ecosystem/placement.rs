@@ -35,7 +35,7 @@ pub struct Angles {
 
 impl Angles {
     /// The rotation: head about the tree's own axis, then the tilt.
-    pub fn rotation(&self) -> Quat {
+    pub(crate) fn rotation(&self) -> Quat {
         Quat::from_rotation_x(self.pitch.to_radians())
             * Quat::from_rotation_z(self.roll.to_radians())
             * Quat::from_rotation_y(self.head.to_radians())
@@ -45,7 +45,7 @@ impl Angles {
 /// Pitch and roll (degrees) that stand a tree perpendicular to a terrain with `normal`
 /// (thesis §3.2.1). The thesis' pseudo-code gives pitch a negative sign in both branches;
 /// here it follows the sign of the normal's z, as roll follows (the opposite of) its x.
-pub fn tilt_from_normal(normal: Vec3) -> (f32, f32) {
+pub(crate) fn tilt_from_normal(normal: Vec3) -> (f32, f32) {
     let roll_axis = Vec2::new(normal.x, normal.y).normalize_or(Vec2::Y);
     let roll = roll_axis.y.clamp(-1.0, 1.0).acos().to_degrees();
     let roll = if roll_axis.x > 0.0 { -roll } else { roll };
@@ -57,7 +57,7 @@ pub fn tilt_from_normal(normal: Vec3) -> (f32, f32) {
 
 /// One placed instance: which species, where, and its grid cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Placement {
+pub(crate) struct Placement {
     /// Index of the species.
     pub species: usize,
     /// Position on the terrain (height from the terrain).
@@ -68,7 +68,7 @@ pub struct Placement {
 
 /// Places `counts[s]` instances of each species `s` on `terrain`, keeping each one
 /// `cell_margin` (a fraction of the cell, 0–0.49) away from its cell's edges.
-pub fn place(
+pub(crate) fn place(
     counts: &[usize],
     terrain: &Terrain,
     cell_margin: f32,

@@ -143,15 +143,15 @@ fn basis(knots: &[f32], p: usize, count: usize, t: f32) -> (usize, Vec<f32>) {
 impl TerrainDesc {
     /// The most sample updates the faults may take (resolution² × iterations): seconds of
     /// work, not hours.
-    pub const MAX_FAULT_WORK: u64 = 400_000_000;
+    pub(crate) const MAX_FAULT_WORK: u64 = 400_000_000;
 
     /// The largest side, control height and fault amplitude, in world units: beyond a
     /// million units single-precision positions lose the precision trees need, and far
     /// beyond they overflow.
-    pub const MAX_EXTENT: f32 = 1_000_000.0;
+    pub(crate) const MAX_EXTENT: f32 = 1_000_000.0;
 
     /// Checks shapes and ranges.
-    pub fn validate(&self) -> Result<(), TerrainError> {
+    pub(crate) fn validate(&self) -> Result<(), TerrainError> {
         if !(self.size.is_finite() && self.size > 0.0 && self.size <= Self::MAX_EXTENT) {
             return Err(err(
                 "size",
@@ -247,7 +247,7 @@ impl TerrainDesc {
     }
 
     /// The height of the NURBS surface (before faults) at parameters `(u, v)` ∈ [0, 1]².
-    pub fn surface_height(&self, u: f32, v: f32) -> f32 {
+    pub(crate) fn surface_height(&self, u: f32, v: f32) -> f32 {
         let p = self.degree as usize;
         let rows = self.control_heights.len();
         let columns = self.control_heights[0].len();
@@ -280,7 +280,7 @@ impl TerrainDesc {
     }
 
     /// Samples the surface and applies the faults.
-    pub fn build(&self) -> Result<Terrain, TerrainError> {
+    pub(crate) fn build(&self) -> Result<Terrain, TerrainError> {
         self.validate()?;
         let n = self.resolution as usize;
         let mut heights = Vec::with_capacity(n * n);
@@ -336,17 +336,18 @@ impl Terrain {
     }
 
     /// Samples per side.
-    pub fn resolution(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn resolution(&self) -> usize {
         self.resolution
     }
 
     /// Height of grid vertex (i, j) (column along x, row along z).
-    pub fn grid_height(&self, i: usize, j: usize) -> f32 {
+    pub(crate) fn grid_height(&self, i: usize, j: usize) -> f32 {
         self.heights[j * self.resolution + i]
     }
 
     /// Position of grid vertex (i, j).
-    pub fn grid_position(&self, i: usize, j: usize) -> Vec3 {
+    pub(crate) fn grid_position(&self, i: usize, j: usize) -> Vec3 {
         let step = self.size / (self.resolution - 1) as f32;
         Vec3::new(i as f32 * step, self.grid_height(i, j), j as f32 * step)
     }
@@ -395,7 +396,8 @@ impl Terrain {
     }
 
     /// Vertex positions of the grid, row by row.
-    pub fn mesh_positions(&self) -> Vec<Vec3> {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn mesh_positions(&self) -> Vec<Vec3> {
         let n = self.resolution;
         (0..n * n)
             .map(|k| self.grid_position(k % n, k / n))
@@ -403,7 +405,8 @@ impl Terrain {
     }
 
     /// Smooth vertex normals of the grid.
-    pub fn mesh_normals(&self) -> Vec<Vec3> {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn mesh_normals(&self) -> Vec<Vec3> {
         let n = self.resolution;
         let step = self.size / (n - 1) as f32;
         (0..n * n)
@@ -420,7 +423,8 @@ impl Terrain {
     }
 
     /// Triangle indices of the grid (counter-clockwise seen from above).
-    pub fn mesh_indices(&self) -> Vec<u32> {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn mesh_indices(&self) -> Vec<u32> {
         let n = self.resolution as u32;
         let mut out = Vec::with_capacity(((n - 1) * (n - 1) * 6) as usize);
         for j in 0..n - 1 {

@@ -16,7 +16,7 @@ use super::MaterialDesc;
 /// view took ~200 ms a frame — more than the forest, and a cost the time-critical budget
 /// does not control. This one costs a few nanoseconds per pixel.
 #[derive(Asset, TypePath, AsBindGroup, Debug, Clone, PartialEq)]
-pub struct TerrainMaterial {
+pub(crate) struct TerrainMaterial {
     /// Colour where the light does not reach (linear RGB, alpha unused).
     #[uniform(0)]
     pub ambient: LinearRgba,
@@ -27,7 +27,7 @@ pub struct TerrainMaterial {
 
 impl TerrainMaterial {
     /// The ecosystem material's ambient and diffuse colours.
-    pub fn from_desc(desc: &MaterialDesc) -> Self {
+    pub(crate) fn from_desc(desc: &MaterialDesc) -> Self {
         let [ar, ag, ab] = desc.ambient;
         let [dr, dg, db] = desc.diffuse;
         Self {

@@ -14,9 +14,9 @@
 //!
 //! Two things keep levels from flickering. The budget keeps the level shown while it
 //! fits the entity's time and moves to a better one only when that costs at most
-//! [`LADDER_UPGRADE_FRACTION`](crate::lod::select::LADDER_UPGRADE_FRACTION) of it; and a
+//! `LADDER_UPGRADE_FRACTION` of it; and a
 //! level one step better or cheaper than the one shown is shown only once the choice has
-//! stayed for [`LadderSettings::hysteresis_frames`] frames ([`LadderState::settle`]); a
+//! stayed for [`LadderSettings::hysteresis_frames`] frames (`LadderState::settle`); a
 //! level two or more steps away shows at once. The budget pays for the level shown, not
 //! the one chosen, so a held dearer level takes its time from the objects after it in
 //! the hand-out and the frame stays on time.
@@ -26,7 +26,9 @@ mod generate;
 mod names;
 
 pub use generate::{GeneratedLevel, LadderError, generate_ladder};
-pub use names::{LadderFromLodNames, lod_name_level, mesh_triangles};
+pub use names::LadderFromLodNames;
+
+pub(crate) use names::mesh_triangles;
 
 use bevy::camera::primitives::Aabb;
 use bevy::prelude::*;
@@ -137,7 +139,7 @@ impl LadderState {
     /// Takes this frame's choice (`wanted`, 0 = best) and returns whether the shown level
     /// changed: at once for a level two or more steps away; for one step better or
     /// cheaper only once it has been chosen `frames` frames in a row.
-    pub fn settle(&mut self, wanted: u32, frames: u32) -> bool {
+    pub(crate) fn settle(&mut self, wanted: u32, frames: u32) -> bool {
         if wanted == self.shown {
             self.candidate = None;
             return false;
@@ -153,14 +155,15 @@ impl LadderState {
 
     /// The level the budget chose instead of the one shown, held back by the hysteresis,
     /// and for how many frames in a row it has been chosen.
-    pub fn pending(&self) -> Option<(u32, u32)> {
+    #[cfg(test)]
+    pub(crate) fn pending(&self) -> Option<(u32, u32)> {
         self.candidate
     }
 
     /// Whether a choice of `wanted` this frame would still keep the level shown: it is
     /// one step away and, counting this frame, has not yet been chosen `frames` frames in
     /// a row. What [`settle`](Self::settle) decides, without deciding it.
-    pub fn holds(&self, wanted: u32, frames: u32) -> bool {
+    pub(crate) fn holds(&self, wanted: u32, frames: u32) -> bool {
         wanted.abs_diff(self.shown) == 1 && self.streak_with(wanted) < frames
     }
 

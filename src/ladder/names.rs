@@ -36,7 +36,7 @@ pub struct LadderFromLodNames;
 /// assert_eq!(lod_name_level("rock_lod0"), Some(("rock", 0)));
 /// assert_eq!(lod_name_level("Rock"), None);
 /// ```
-pub fn lod_name_level(name: &str) -> Option<(&str, u32)> {
+pub(crate) fn lod_name_level(name: &str) -> Option<(&str, u32)> {
     const TAG: &str = "_lod";
     let digits = name.len() - name.bytes().rev().take_while(u8::is_ascii_digit).count();
     if digits == name.len() || digits < TAG.len() {
@@ -52,7 +52,7 @@ pub fn lod_name_level(name: &str) -> Option<(&str, u32)> {
 }
 
 /// The triangles a mesh draws, `None` for points and lines.
-pub fn mesh_triangles(mesh: &Mesh) -> Option<u32> {
+pub(crate) fn mesh_triangles(mesh: &Mesh) -> Option<u32> {
     let corners = match mesh.indices() {
         Some(Indices::U16(i)) => i.len(),
         Some(Indices::U32(i)) => i.len(),

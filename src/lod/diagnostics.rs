@@ -129,7 +129,7 @@ pub struct LodDiagnostics {
     /// rendering time to hand out and everything was drawn at its cheapest.
     pub target_below_logic: bool,
     /// Of the frames measured in the last second, the share longer than the goal's limit
-    /// ([`FrameGoal::over_limit`](super::FrameGoal::over_limit): `slack × target` for the
+    /// (`FrameGoal::over_limit`: `slack × target` for the
     /// default tail goal); the default goal holds it at about 5%.
     pub frames_over_share: f32,
 }

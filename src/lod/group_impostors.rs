@@ -17,7 +17,7 @@ use crate::tree::{GroupImpostorMember, TreeModel, group_impostor_model};
 /// culling hierarchy. It is a [`TreeInstance`] with [`FixedDrawList`], outside the
 /// instance table; the Budget stage writes its [`TreeDrawList`].
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
-pub struct GroupImpostorOf {
+pub(crate) struct GroupImpostorOf {
     /// The box, an index into the hierarchy's nodes.
     pub node: u32,
 }
@@ -38,7 +38,7 @@ pub(crate) struct GroupImpostor {
 /// After trees are planted or felled, the group impostors of the boxes that hold them are
 /// rebuilt at most this often, in seconds of real time; until then they show the trees
 /// they were built with.
-pub const GROUP_REBUILD_SECS: f32 = 1.0;
+pub(crate) const GROUP_REBUILD_SECS: f32 = 1.0;
 
 /// The group impostors of the culling hierarchy's boxes, built by the LOD plugin while
 /// the strategy is [`StrategyKind::Hierarchical`].
@@ -66,23 +66,6 @@ impl GroupImpostors {
     /// Whether none has.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-
-    /// How long the last build took, in milliseconds (models analysed and spawned).
-    pub fn build_ms(&self) -> f32 {
-        self.build_ms
-    }
-
-    /// Boxes whose group could not be built at the last build (warned about; their trees
-    /// are always drawn on their own).
-    pub fn failed(&self) -> u32 {
-        self.failed
-    }
-
-    /// How many times impostors were built: every box's when the strategy was chosen or
-    /// the hierarchy built anew, the changed boxes' after trees were planted or felled.
-    pub fn builds(&self) -> u64 {
-        self.builds
     }
 
     /// Whether box `node` of the culling's hierarchy has a group impostor built for the

@@ -14,13 +14,13 @@
 //!   rendering, [`FrameOverlap`](crate::cost::FrameOverlap), replaces the paper's
 //!   P-5..P-7), less the rendering's fixed part; every object's cheapest representation
 //!   is paid first, then Robin Hood walks the objects simple → complex (object types are
-//!   ranked once when models change) and each object's search (see [`select`]) picks what
+//!   ranked once when models change) and each object's search (see `select`) picks what
 //!   fits its floor plus its share, the remainder passing on; a residue left at the end is
 //!   handed out again to objects below full detail. The search runs inside the hand-out
 //!   because a remainder is only known once the object has chosen.
 //!   With [`StrategyKind::Hierarchical`] the Budget stage instead solves the culling boxes
 //!   in view as a Mason–Blake hierarchy (boxes with group impostors over trees over their
-//!   trunk and leaves, see [`GroupImpostorSettings`] and [`HierarchicalCut`]) from last frame's
+//!   trunk and leaves, see [`GroupImpostorSettings`] and `HierarchicalCut`) from last frame's
 //!   cut; the Value stage then values only the trees that cut can reach. Each strategy
 //!   is a file of its own behind one interface (`src/lod/strategy/`). In `Static` and
 //!   `Unlimited` mode no time is handed out: every object draws what its mode draws.
@@ -44,19 +44,21 @@ mod draw_lists;
 mod group_impostors;
 mod hand_out;
 mod search;
-pub mod select;
+pub(crate) mod select;
 mod settings;
 mod strategy;
 mod value;
 
+pub use crate::budget::ValueFunction;
 pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
-pub use group_impostors::{GROUP_REBUILD_SECS, GroupImpostorOf, GroupImpostors};
+pub use group_impostors::GroupImpostors;
+#[cfg(test)]
+pub(crate) use group_impostors::{GROUP_REBUILD_SECS, GroupImpostorOf};
 pub use settings::{
-    BenefitReport, FrameBudget, FrameGoal, GroupImpostorSettings, LodMode, RUNG_FRACTIONS,
-    StrategyKind, TARGET_WARNING_SECS,
+    BenefitReport, FrameBudget, FrameGoal, GroupImpostorSettings, LodMode, StrategyKind,
 };
-pub use strategy::HierarchicalCut;
-pub use value::UNIFORM_DEPTH_RADII;
+pub(crate) use settings::{RUNG_FRACTIONS, TARGET_WARNING_SECS};
+pub(crate) use strategy::HierarchicalCut;
 
 use bevy::prelude::*;
 

@@ -18,13 +18,13 @@
 
 use core::ops::Range;
 
-pub use crate::cost::PrimitiveCosts;
+pub(crate) use crate::cost::PrimitiveCosts;
 use crate::draw::{LineRun, PointRun, TreeDrawList};
 use crate::tree::{PixelRange, Projection, TreeModel};
 
 /// Mean ratio of a segment's projected length to its length: trunks and branches are
 /// seen from the side more often than end-on.
-pub const PROJECTED_LENGTH_FACTOR: f32 = 0.8;
+pub(crate) const PROJECTED_LENGTH_FACTOR: f32 = 0.8;
 
 /// A leaf group's projected area over `n · a_h · s² / z²`: half the leaves face the
 /// camera (thesis T-4.4).
@@ -32,7 +32,7 @@ const LEAF_FACING: f32 = 1.0 / 1.8;
 
 /// How one tree instance is seen this frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TreeView {
+pub(crate) struct TreeView {
     /// Uniform instance scale.
     pub scale: f32,
     /// Depth of the trunk's area-density centre.
@@ -44,7 +44,7 @@ pub struct TreeView {
 /// What a search drew: its predicted time, and whether even the cheapest representation
 /// overran the time it had.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Selected {
+pub(crate) struct Selected {
     /// Predicted rendering time, seconds.
     pub cost: f32,
     /// The part of `cost` spent on lines (the rest on triangles and points).
@@ -65,7 +65,7 @@ pub struct Selected {
 
 impl Selected {
     /// Two parts drawn together (a tree's trunk and leaves).
-    pub fn both(a: Self, b: Self) -> Self {
+    pub(crate) fn both(a: Self, b: Self) -> Self {
         Self {
             cost: a.cost + b.cost,
             lines: a.lines + b.lines,
@@ -120,7 +120,7 @@ fn thick_end(model: &TreeModel, from_segment: u32) -> Range<u32> {
 
 /// TC trunk: as many triangles as `time` pays for, from the thickest segment down; at
 /// least the thickest segment (truncated when even that does not fit).
-pub fn trunk_tc(
+pub(crate) fn trunk_tc(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,
@@ -150,7 +150,8 @@ pub fn trunk_tc(
 }
 
 /// Projected area in pixels of one trunk triangle of this instance.
-pub fn trunk_triangle_area(model: &TreeModel, view: &TreeView) -> f32 {
+#[cfg(any(test, feature = "render"))]
+pub(crate) fn trunk_triangle_area(model: &TreeModel, view: &TreeView) -> f32 {
     let p = pixels_per_unit(view, view.trunk_depth);
     model.mean_trunk_triangle_area * p * p
 }
@@ -216,7 +217,7 @@ fn clip_lines(runs: &mut Vec<LineRun>, dropped: u32, k: u32) {
 
 /// Static trunk (thesis §4.4.1): the pixel-driven lines of several widths for the thin
 /// segments and triangles for the rest, whatever the time.
-pub fn trunk_static(
+pub(crate) fn trunk_static(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,
@@ -241,7 +242,7 @@ pub fn trunk_static(
 /// short of time, the thinnest lines are removed until it fits, and if the triangles
 /// alone are too dear the trunk is drawn as in TC from the thick end. A trunk too thick
 /// for the widest line (seen from close) is drawn as in TC.
-pub fn trunk_tclod(
+pub(crate) fn trunk_tclod(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,
@@ -383,7 +384,7 @@ fn thickest_triangles(model: &TreeModel) -> u32 {
 /// A ladder entity moves to a better level only when that level costs at most this
 /// fraction of its time, and keeps the level it shows while that still fits: between the
 /// two, frame-to-frame changes of its share do not flip it back and forth.
-pub const LADDER_UPGRADE_FRACTION: f32 = 0.85;
+pub(crate) const LADDER_UPGRADE_FRACTION: f32 = 0.85;
 
 /// The level of a LOD ladder (`triangles`: each level's count, best first; `pixels`: what
 /// the entity covers on screen, at every level) chosen with `time` seconds, when it shows
@@ -391,7 +392,7 @@ pub const LADDER_UPGRADE_FRACTION: f32 = 0.85;
 /// is better than `shown`, else `shown` if it fits, else the best that fits, else the
 /// cheapest (nothing visible is dropped); with its cost on Bevy's mesh path. A ladder
 /// without levels costs nothing.
-pub fn ladder_level(
+pub(crate) fn ladder_level(
     costs: &PrimitiveCosts,
     triangles: &[u32],
     pixels: f32,
@@ -422,7 +423,12 @@ pub fn ladder_level(
 
 /// What showing `level` of a ladder (`triangles` and `pixels` as for [`ladder_level`])
 /// costs on Bevy's mesh path (the last level past the end; nothing for no levels).
-pub fn ladder_cost(costs: &PrimitiveCosts, triangles: &[u32], pixels: f32, level: u32) -> Selected {
+pub(crate) fn ladder_cost(
+    costs: &PrimitiveCosts,
+    triangles: &[u32],
+    pixels: f32,
+    level: u32,
+) -> Selected {
     let Some(&count) = triangles.get(level as usize).or(triangles.last()) else {
         return Selected::default();
     };
@@ -441,7 +447,7 @@ pub fn ladder_cost(costs: &PrimitiveCosts, triangles: &[u32], pixels: f32, level
 /// a choice one level better, or one level cheaper, would still be held back (the choice
 /// has not yet lasted the frames it must).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LadderHold {
+pub(crate) struct LadderHold {
     /// The level shown (0 = best).
     pub shown: u32,
     /// A choice one level better would keep `shown`.
@@ -452,7 +458,7 @@ pub struct LadderHold {
 
 impl LadderHold {
     /// The level shown this frame when the budget chooses `wanted`.
-    pub fn shown_for(&self, wanted: u32) -> u32 {
+    pub(crate) fn shown_for(&self, wanted: u32) -> u32 {
         let held =
             (wanted + 1 == self.shown && self.better) || (wanted == self.shown + 1 && self.cheaper);
         if held { self.shown } else { wanted }
@@ -462,7 +468,7 @@ impl LadderHold {
 /// What [`trunk_tc`] (`widths` `None`) or [`trunk_tclod`] draws with no time at all: the
 /// cost of the trunk's cheapest representation, found without searching (the budget
 /// pays every visible object's floor before it hands out the rest).
-pub fn trunk_floor(
+pub(crate) fn trunk_floor(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,
@@ -526,7 +532,7 @@ pub fn trunk_floor(
 
 /// One visible leaf group of a tree: its index and depth.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VisibleLeafGroup {
+pub(crate) struct VisibleLeafGroup {
     /// Index into [`TreeModel::leaf_groups`].
     pub group: u32,
     /// Depth of the group's centre.
@@ -534,13 +540,13 @@ pub struct VisibleLeafGroup {
 }
 
 /// Mean area of one leaf (world units, unscaled).
-pub fn mean_leaf_area(model: &TreeModel) -> f32 {
+pub(crate) fn mean_leaf_area(model: &TreeModel) -> f32 {
     model.mean_leaf_triangle_area * model.leaf_triangle_count() as f32
         / model.leaves.len().max(1) as f32
 }
 
 /// Projected area in pixels of a group of `leaves` leaves at `depth` (T-4.4).
-pub fn group_area(model: &TreeModel, view: &TreeView, leaves: u32, depth: f32) -> f32 {
+pub(crate) fn group_area(model: &TreeModel, view: &TreeView, leaves: u32, depth: f32) -> f32 {
     let p = pixels_per_unit(view, depth);
     leaves as f32 * mean_leaf_area(model) * p * p * LEAF_FACING
 }
@@ -578,7 +584,7 @@ impl LeafTriangles {
 
 /// How the leaves of a tree are chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LeafMethod {
+pub(crate) enum LeafMethod {
     /// Triangles only, far leaves first.
     Tc,
     /// Points of several sizes and triangles.
@@ -592,7 +598,7 @@ pub enum LeafMethod {
 /// A tree's leaves: the time is shared among its visible groups by projected area, each
 /// group's remainder going to the groups after it and the last remainder back to the
 /// caller (thesis §6.5). `groups` lists the visible groups.
-pub fn leaves(
+pub(crate) fn leaves(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,
@@ -728,7 +734,7 @@ fn group_leaf_costs<'a>(
 
 /// What [`leaves`] draws with no time at all: the cost of the leaves' cheapest
 /// representation, found without searching.
-pub fn leaves_floor(
+pub(crate) fn leaves_floor(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,
@@ -1005,7 +1011,7 @@ impl TreeAtDepth {
 
 /// What [`leaves_at_depth`] draws with no time at all: the cost of the leaves' cheapest
 /// representation, found without searching.
-pub fn leaves_at_depth_floor(
+pub(crate) fn leaves_at_depth_floor(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,
@@ -1045,7 +1051,7 @@ pub fn leaves_at_depth_floor(
 /// The predicted cost is exactly that of what is drawn. As group by group, every group
 /// draws at least one leaf; unlike it, when only far points fit every group's points
 /// have one size, the largest for a group of average size.
-pub fn leaves_at_depth(
+pub(crate) fn leaves_at_depth(
     model: &TreeModel,
     view: &TreeView,
     costs: &PrimitiveCosts,

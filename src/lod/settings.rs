@@ -25,7 +25,7 @@ pub enum LodMode {
 impl LodMode {
     /// Whether the mode hands out a rendering time ([`Tclod`](Self::Tclod),
     /// [`Tc`](Self::Tc)); the others draw every object by a fixed rule.
-    pub fn is_time_critical(self) -> bool {
+    pub(crate) fn is_time_critical(self) -> bool {
         matches!(self, Self::Tclod | Self::Tc)
     }
 }
@@ -59,7 +59,7 @@ pub enum FrameGoal {
     Mean,
     /// At most `share` of the frames longer than `slack × target`: the work is aimed at
     /// `slack × target` divided by what the learned scatter of frame times around their
-    /// prediction ([`CostModel::frame_spread`](crate::cost::CostModel::frame_spread))
+    /// prediction (`CostModel::frame_spread`)
     /// reaches at that share. A noisy machine is aimed below the target, a quiet one a
     /// little above it (σ = 2%: 1.06 × target); under vsync never past the last vertical
     /// blank the target allows.
@@ -77,7 +77,7 @@ impl FrameGoal {
     /// unit: `slack × target` for [`FrameGoal::Tail`] (the slack taken within 1 to 4, as
     /// the budget does), and for [`FrameGoal::Mean`], which has no slack, 1.1 × target
     /// (the default tail's), so both goals are counted alike.
-    pub fn over_limit(&self, target: f32) -> f32 {
+    pub(crate) fn over_limit(&self, target: f32) -> f32 {
         let slack = match *self {
             Self::Tail { slack, .. } => slack,
             Self::Mean => 1.1,
@@ -103,7 +103,7 @@ pub struct FrameBudget {
     /// Target frame time in milliseconds; 100 because this crate's reference machine
     /// renders in software. Default: `100.0`. A target at or below the logic time leaves no rendering time:
     /// everything is drawn at its cheapest ([`LodDiagnostics::target_below_logic`](super::LodDiagnostics::target_below_logic)), and a
-    /// warning is logged once it has lasted [`TARGET_WARNING_SECS`] (not for the slow
+    /// warning is logged once it has lasted `TARGET_WARNING_SECS` (not for the slow
     /// frames of start-up, while shaders compile and the measured logic time settles).
     pub target_ms: f32,
     /// What the target promises. Default: [`FrameGoal::Tail`], at most 5% of frames over
@@ -114,13 +114,13 @@ pub struct FrameBudget {
     /// Who hands out the time in the time-critical modes. Default:
     /// [`StrategyKind::RobinHood`]. The
     /// other strategies see each object as rungs of its representations at
-    /// [`RUNG_FRACTIONS`] of its full cost, with benefit `value · √(cost / full cost)`.
+    /// `RUNG_FRACTIONS` of its full cost, with benefit `value · √(cost / full cost)`.
     pub strategy: StrategyKind,
     /// Value function. Default: [`ValueFunction::P11`].
     pub value: ValueFunction,
     /// Importance of trunks. Default: `1.0`. A value that is not finite or is negative
     /// is taken as the default, and both 0 as both defaults, with a warning
-    /// ([`importances`](Self::importances)).
+    /// (`importances`).
     pub trunk_importance: f32,
     /// Importance of leaves, as in the paper. Default: `0.0625` (1/16). See
     /// `trunk_importance`.
@@ -130,7 +130,7 @@ pub struct FrameBudget {
     /// Point sizes in pixels; static mode uses the smallest. Default: `PixelRange { min: 1, max: 20 }`.
     pub point_sizes: PixelRange,
     /// With Robin Hood: a far tree (entirely in view and chosen as a whole, see
-    /// [`UNIFORM_DEPTH_RADII`](super::UNIFORM_DEPTH_RADII)) is decided again only every
+    /// `UNIFORM_DEPTH_RADII`) is decided again only every
     /// this many frames, the far trees taking turns; in between it keeps its
     /// representation, whose predicted time is taken off the rendering time before the
     /// hand-out. Trades how fast a far tree follows the camera for the LOD stages' time
@@ -162,7 +162,7 @@ impl FrameBudget {
     /// the ones set: each as set when finite and not negative, else its default; both at
     /// their defaults when both are 0 (no tree would be worth any time, and every one
     /// would stay at its cheapest however much time there is).
-    pub fn importances(&self) -> ([f32; 2], bool) {
+    pub(crate) fn importances(&self) -> ([f32; 2], bool) {
         let defaults = Self::default();
         let valid = |v: f32, default: f32| {
             if v.is_finite() && v >= 0.0 {
@@ -191,8 +191,8 @@ impl FrameBudget {
 /// the hand-out itself, and is left out of `budget_stage_ms`. Default: off.
 ///
 /// The benefit is the ladders' model, `value · √(cost / full cost)` per object
-/// ([`sqrt_benefit`](crate::budget::oracle::sqrt_benefit)); the bound is its best total
-/// within the rendering time ([`sqrt_benefit_bound`](crate::budget::oracle::sqrt_benefit_bound)),
+/// (`sqrt_benefit`); the bound is its best total
+/// within the rendering time (`sqrt_benefit_bound`),
 /// which no strategy can exceed except where Robin Hood's cheapest representations alone
 /// exceed the rendering time. With [`StrategyKind::Hierarchical`] the bound is over the
 /// trees its cut reached: for the first frames after switching to it, while the cut is
@@ -206,7 +206,7 @@ pub struct BenefitReport {
 
 /// The group impostors of the [`StrategyKind::Hierarchical`] strategy: one per box of the
 /// culling hierarchy holding enough trees, built from its trees
-/// ([`group_impostor_model`](crate::tree::group_impostor_model)) the first time the strategy is chosen and
+/// (`group_impostor_model`) the first time the strategy is chosen and
 /// whenever the forest's layout changes (not when trees only move or sway: a group keeps
 /// its trees' places at build time, and does not sway). Changing it rebuilds them.
 #[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Reflect)]
@@ -241,7 +241,7 @@ impl Default for GroupImpostorSettings {
 
 impl GroupImpostorSettings {
     /// The group-model options these settings ask for.
-    pub fn model_options(&self) -> crate::tree::GroupImpostorOptions {
+    pub(crate) fn model_options(&self) -> crate::tree::GroupImpostorOptions {
         crate::tree::GroupImpostorOptions {
             leaves: self.leaves,
             trunks: self.trunks,
@@ -253,9 +253,9 @@ impl GroupImpostorSettings {
 /// strategies that price representations as rungs (Funkhouser–Séquin, its incremental
 /// variant, the triangle budget, the hierarchical strategy; best → cheapest, 0 gives the
 /// cheapest representation).
-pub const RUNG_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
+pub(crate) const RUNG_FRACTIONS: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 1.0 / 16.0, 1.0 / 64.0, 0.0];
 
 /// How long, in seconds, the target must stay at or below the logic time before a
 /// warning is logged: longer than the start-up's slow frames take to leave the learned
 /// logic time.
-pub const TARGET_WARNING_SECS: f32 = 3.0;
+pub(crate) const TARGET_WARNING_SECS: f32 = 3.0;

@@ -56,7 +56,7 @@ pub(super) struct VisibleTree {
 /// ([`select::leaves_at_depth`]): every group's depth is then within an eighth of the
 /// centre's, and deciding once instead of group by group is what lets a large forest's
 /// LOD stages keep up.
-pub const UNIFORM_DEPTH_RADII: f32 = 8.0;
+pub(crate) const UNIFORM_DEPTH_RADII: f32 = 8.0;
 
 /// What the stages need of a tree type, derived once when models change.
 pub(super) struct ModelInfo {

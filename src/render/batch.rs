@@ -11,14 +11,14 @@
 
 use bevy::render::render_resource::Face;
 
-use crate::draw::{
+use crate::draw::packing::{
     GpuChunk, LINES_PER_CHUNK, POINTS_PER_CHUNK, PrimitiveKind, TRIANGLES_PER_CHUNK,
 };
 
 /// Points of this many pixels and more are drawn round (as octagons of the square's
 /// area); smaller ones stay squares. Up to five pixels a disc of a square's area,
 /// centred on a pixel, lights the same pixels as the square, or nearly.
-pub const ROUND_FROM_SIZE: u32 = 6;
+pub(crate) const ROUND_FROM_SIZE: u32 = 6;
 
 /// One instanced draw of the forest pass.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

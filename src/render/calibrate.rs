@@ -56,7 +56,7 @@ use crate::wind::WindSettings;
 #[derive(Resource, Clone, Debug, PartialEq)]
 pub struct CalibrationSettings {
     /// Where to write the calibration; `None`: the [`CalibrationDir`] under the adapter's
-    /// [`calibration_file_name`].
+    /// `calibration_file_name`.
     pub out: Option<PathBuf>,
     /// Frames after each change before measuring (pipelines, late timestamps).
     pub settle_frames: u32,
@@ -100,7 +100,7 @@ pub struct CalibrationProgress {
 }
 
 /// Runs the calibration benchmarks once the scene's forest has loaded; see the
-/// [module docs](self). Configure it with a [`CalibrationSettings`] resource.
+/// module docs. Configure it with a [`CalibrationSettings`] resource.
 #[derive(Default)]
 pub struct CalibrationRunPlugin;
 

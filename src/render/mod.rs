@@ -20,7 +20,7 @@
 //! it out (a minimap) does not draw it.
 
 mod batch;
-pub mod calibrate;
+mod calibrate;
 mod hud;
 
 use std::sync::{Arc, Mutex};
@@ -57,10 +57,9 @@ pub use calibrate::{
 };
 pub use hud::{ForestHud, ForestHudPlugin};
 
-use crate::draw::{
-    FrameChunks, GeometryAtlas, ModelSlot, PrimitiveCounts, PrimitiveKind, TreeDrawList,
-    TreeShading,
-};
+use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList, TreeShading};
+
+use crate::draw::packing::{FrameChunks, GeometryAtlas, PrimitiveKind};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::tree::{NO_RING, TreeModel, TreeModelsVersion};
 use crate::wind::RingOffsetTable;
@@ -68,7 +67,7 @@ use batch::{CORNER_INDICES, DrawBatch};
 
 /// Name of the pass in Bevy's render diagnostics: its GPU time is published as
 /// `render/sherwood_forest/elapsed_gpu` when `RenderDiagnosticsPlugin` is present.
-pub const PASS_NAME: &str = "sherwood_forest";
+pub(crate) const PASS_NAME: &str = "sherwood_forest";
 
 /// Draws tree instances with the forest render pass. Part of [`SherwoodPlugins`](crate::SherwoodPlugins)
 /// with the `render` feature; without Bevy's render app (a headless app) it only keeps
@@ -98,7 +97,7 @@ pub struct ForestRenderStats {
     /// GPU time of the pass in milliseconds, summed over views, when Bevy's
     /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries. The
     /// cost model learns from it which part of the rendering the budgeted primitives take
-    /// ([`FrameSamples::push_pass`](crate::cost::FrameSamples::push_pass)); the whole
+    /// (`FrameSamples::push_pass`); the whole
     /// frame's GPU time is measured apart ([`FrameSample::gpu`](crate::cost::FrameSample::gpu)).
     pub gpu_time_ms: Option<f64>,
 }
@@ -270,7 +269,7 @@ impl FrameRecords {
         let (chunks, gathered) = self.chunks.len_bound();
         let bytes = |n: usize, size: usize| (n * size) as u64;
         bytes(self.instances.len(), size_of::<GpuInstance>()) <= self.binding_limit
-            && bytes(chunks, size_of::<crate::draw::GpuChunk>()) <= self.binding_limit
+            && bytes(chunks, size_of::<crate::draw::packing::GpuChunk>()) <= self.binding_limit
             && bytes(gathered, size_of::<[u32; 2]>()) <= self.binding_limit
             && bytes(self.ring_offsets.len(), size_of::<[f32; 4]>()) <= self.binding_limit
     }
@@ -478,11 +477,11 @@ impl FrameRecords {
 /// GPU copies of the frame's records and the shared geometry.
 #[derive(Resource)]
 struct ForestBuffers {
-    vertices: RawBufferVec<crate::draw::GpuVertex>,
+    vertices: RawBufferVec<crate::draw::packing::GpuVertex>,
     indices: RawBufferVec<u32>,
-    primitives: RawBufferVec<crate::draw::GpuPrimitive>,
+    primitives: RawBufferVec<crate::draw::packing::GpuPrimitive>,
     instances: RawBufferVec<GpuInstance>,
-    chunks: RawBufferVec<crate::draw::GpuChunk>,
+    chunks: RawBufferVec<crate::draw::packing::GpuChunk>,
     ring_offsets: RawBufferVec<[f32; 4]>,
     gathered: RawBufferVec<[u32; 2]>,
     light: RawBufferVec<GpuLight>,
@@ -563,7 +562,7 @@ fn upload_buffers(
     }
     buffers.batch_starts[DrawBatch::ALL.len()] = chunks.len() as u32;
     if chunks.is_empty() {
-        chunks.push(crate::draw::GpuChunk::default());
+        chunks.push(crate::draw::packing::GpuChunk::default());
     }
     buffers.instances.write_buffer(&device, &queue);
     buffers.ring_offsets.write_buffer(&device, &queue);
@@ -888,7 +887,8 @@ fn draw_forest(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::draw::{GpuChunk, LineRun, PointRun};
+    use crate::draw::packing::GpuChunk;
+    use crate::draw::{LineRun, PointRun};
     use crate::tree::grand_model as model;
 
     /// Records whose buffers bind `limit` bytes, and the model's place in an atlas.

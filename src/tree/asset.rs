@@ -16,9 +16,9 @@ use super::model::TreeModel;
 use super::species::{SpeciesDesc, SpeciesError};
 
 /// First bytes of a `*.tree.bin` file.
-pub const BINARY_MAGIC: &[u8; 8] = b"SHWDTREE";
+pub(crate) const BINARY_MAGIC: &[u8; 8] = b"SHWDTREE";
 /// Version of the binary layout; files of another version are refused with a clear error.
-pub const BINARY_VERSION: u32 = 1;
+pub(crate) const BINARY_VERSION: u32 = 1;
 
 /// Why a tree file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -437,7 +437,7 @@ pub struct TreePlugin;
 /// Bumped whenever a tree model is added, changed or removed, so that whatever is
 /// derived from the set of models (packed geometry, object-type ranks) is rebuilt.
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct TreeModelsVersion(pub u64);
+pub(crate) struct TreeModelsVersion(pub u64);
 
 fn bump_models_version(
     mut events: MessageReader<AssetEvent<TreeModel>>,

@@ -18,7 +18,7 @@ use super::species::{GeneratedTree, tube};
 /// One tree of a group: its model, where it stands relative to the group's origin, and
 /// its model's [`TreeModel::far_first_leaves`] (computed once per model by the caller).
 #[derive(Clone, Copy, Debug)]
-pub struct GroupImpostorMember<'a> {
+pub(crate) struct GroupImpostorMember<'a> {
     /// The tree's model.
     pub model: &'a TreeModel,
     /// Model space → group space (uniform scale).
@@ -29,7 +29,7 @@ pub struct GroupImpostorMember<'a> {
 
 /// How much of its members a group model keeps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct GroupImpostorOptions {
+pub(crate) struct GroupImpostorOptions {
     /// Leaves kept in all (one triangle each), at least one per kept tree.
     pub leaves: u32,
     /// Trees whose stem and leaves are kept, at most.
@@ -56,7 +56,7 @@ const STEM_SIDES: usize = 5;
 ///
 /// Fails like [`analyze`] does; in particular with
 /// [`TreeAnalysisError::NoTriangles`] when no member has a trunk.
-pub fn group_impostor_model(
+pub(crate) fn group_impostor_model(
     members: &[GroupImpostorMember],
     options: &GroupImpostorOptions,
 ) -> Result<TreeModel, TreeAnalysisError> {

@@ -4,11 +4,12 @@
 
 use core::ops::Range;
 
+#[cfg(test)]
 use super::model::TreeModel;
 
 /// How the view projects: pixels covered by one world unit at unit depth.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Projection {
+pub(crate) struct Projection {
     /// `viewport height / (2·tan(vertical fov / 2))`, in pixels.
     pub focal_pixels: f32,
 }
@@ -16,14 +17,15 @@ pub struct Projection {
 impl Projection {
     /// The projection of a perspective camera with vertical field of view `fov` (radians)
     /// on a viewport `height` pixels tall.
-    pub fn perspective(fov: f32, height: f32) -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn perspective(fov: f32, height: f32) -> Self {
         Self {
             focal_pixels: height / (2.0 * (fov * 0.5).tan()).max(1e-6),
         }
     }
 
     /// Pixels covered by `length` world units at `depth`.
-    pub fn pixels(&self, length: f32, depth: f32) -> f32 {
+    pub(crate) fn pixels(&self, length: f32, depth: f32) -> f32 {
         length * self.focal_pixels / depth.max(1e-3)
     }
 }
@@ -47,12 +49,12 @@ impl Default for PixelRange {
 
 impl PixelRange {
     /// The widest line or largest point the LOD uses: larger settings are taken as this.
-    pub const LARGEST: u32 = 64;
+    pub(crate) const LARGEST: u32 = 64;
 
     /// The range as the LOD uses it: `min` at least 1, `max` at least `min`, both at most
     /// [`PixelRange::LARGEST`] (a range a user typed as `max: 0` or `min: u32::MAX`
     /// still means something, and no loop over widths runs for billions of steps).
-    pub fn sanitized(self) -> Self {
+    pub(crate) fn sanitized(self) -> Self {
         let min = self.min.clamp(1, Self::LARGEST);
         Self {
             min,
@@ -63,7 +65,8 @@ impl PixelRange {
 
 /// What one trunk draws: segment ranges (in the model's thin → thick order).
 #[derive(Clone, Debug, PartialEq, Eq, Default)]
-pub struct TrunkLod {
+#[cfg(test)]
+pub(crate) struct TrunkLod {
     /// Segments too thin to see (below half a pixel of the thinnest width).
     pub dropped: Range<u32>,
     /// `(width in pixels, segments)` drawn as lines, thin → thick.
@@ -76,7 +79,8 @@ pub struct TrunkLod {
 /// drawn as a line of width `w` when its projected diameter lies in `[w − ½, w + ½)`
 /// pixels; thinner than the thinnest width's range it is dropped; thicker than the
 /// widest width's it is drawn as triangles.
-pub fn trunk_lod(
+#[cfg(test)]
+pub(crate) fn trunk_lod(
     model: &TreeModel,
     scale: f32,
     depth: f32,
@@ -158,7 +162,8 @@ pub(crate) fn trunk_line_runs(
 
 /// What one leaf group draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub struct GroupLod {
+#[cfg(test)]
+pub(crate) struct GroupLod {
     /// Leaves drawn as points.
     pub points: u32,
     /// Whether the points are the group's far leaves (`true`) or its near ones.
@@ -173,7 +178,8 @@ pub struct GroupLod {
 /// `n_p = a_g / a_p` points are drawn from the far end when fewer than the `n` leaves;
 /// between `n` and `2n`, `2n − n_p` near points and the rest as triangles (T-4.6);
 /// beyond, every leaf as triangles.
-pub fn group_lod(
+#[cfg(test)]
+pub(crate) fn group_lod(
     model: &TreeModel,
     group: usize,
     scale: f32,

@@ -16,17 +16,19 @@ mod species;
 pub use analyze::{
     AnalysisOptions, AnalysisWarning, MeshData, TreeAnalysis, TreeAnalysisError, TreePart, analyze,
 };
-pub use asset::{
-    BINARY_MAGIC, BINARY_VERSION, SpeciesLoader, TreeFileError, TreeModelLoader, TreeModelsVersion,
-    TreePlugin,
-};
+pub(crate) use asset::TreeModelsVersion;
+
+pub use asset::{SpeciesLoader, TreeFileError, TreeModelLoader, TreePlugin};
 #[cfg(feature = "gltf")]
 pub use gltf::{
     BufferFile, GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffers, import_gltf,
 };
-pub use group_impostor::{GroupImpostorMember, GroupImpostorOptions, group_impostor_model};
+pub(crate) use group_impostor::{GroupImpostorMember, GroupImpostorOptions, group_impostor_model};
+pub use lod::PixelRange;
+pub(crate) use lod::Projection;
 pub(crate) use lod::trunk_line_runs;
-pub use lod::{GroupLod, PixelRange, Projection, TrunkLod, group_lod, trunk_lod};
+#[cfg(test)]
+pub(crate) use lod::trunk_lod;
 #[cfg(feature = "render")]
 pub(crate) use mesh::triangle_mesh;
 #[cfg(feature = "render")]
@@ -34,9 +36,9 @@ pub use mesh::{MeshConversionError, OwnedMeshData};
 pub use model::{
     BoundingSphere, Bounds, Leaf, LeafGroup, LinearRgb, NO_RING, Ring, Segments, TreeModel,
 };
-pub use species::{
-    BranchLevel, GeneratedTree, LeafDesc, LeafShape, SpeciesDesc, SpeciesError, tube,
-};
+#[cfg(test)]
+pub(crate) use species::tube;
+pub use species::{BranchLevel, GeneratedTree, LeafDesc, LeafShape, SpeciesDesc, SpeciesError};
 
 /// The shipped `grand` species, generated and analysed: a full tree for unit tests.
 #[cfg(test)]

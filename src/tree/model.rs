@@ -23,18 +23,18 @@ pub struct Bounds {
 
 impl Bounds {
     /// The empty box (contains nothing, grows to the first point added).
-    pub const EMPTY: Self = Self {
+    pub(crate) const EMPTY: Self = Self {
         min: Vec3::splat(f32::INFINITY),
         max: Vec3::splat(f32::NEG_INFINITY),
     };
 
     /// The smallest box around `points` ([`Bounds::EMPTY`] for none).
-    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
+    pub(crate) fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
         points.into_iter().fold(Self::EMPTY, Self::grown)
     }
 
     /// This box grown to contain `p`.
-    pub fn grown(self, p: Vec3) -> Self {
+    pub(crate) fn grown(self, p: Vec3) -> Self {
         Self {
             min: self.min.min(p),
             max: self.max.max(p),
@@ -42,7 +42,7 @@ impl Bounds {
     }
 
     /// The smallest box containing both.
-    pub fn union(self, other: Self) -> Self {
+    pub(crate) fn union(self, other: Self) -> Self {
         Self {
             min: self.min.min(other.min),
             max: self.max.max(other.max),
@@ -65,7 +65,7 @@ impl Bounds {
     }
 
     /// Whether the box contains no point.
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
     }
 }
@@ -252,13 +252,15 @@ impl TreeModel {
     }
 
     /// The ring vertices of ring `ring` (trunk vertex indices).
-    pub fn vertices_of(&self, ring: u32) -> &[u32] {
+    #[cfg(test)]
+    pub(crate) fn vertices_of(&self, ring: u32) -> &[u32] {
         let r = &self.rings[ring as usize].vertices;
         &self.ring_vertices[r.start as usize..r.end as usize]
     }
 
     /// The leaf group's leaves.
-    pub fn leaves_of(&self, group: usize) -> &[Leaf] {
+    #[cfg(test)]
+    pub(crate) fn leaves_of(&self, group: usize) -> &[Leaf] {
         let r = &self.leaf_groups[group].leaves;
         &self.leaves[r.start as usize..r.end as usize]
     }
@@ -279,7 +281,7 @@ impl TreeModel {
     /// leaves as one or two runs of this order instead of one or two per group (see
     /// [`TreeDrawList`](crate::draw::TreeDrawList), which addresses it as leaves
     /// `leaves.len()..2 · leaves.len()`).
-    pub fn far_first_leaves(&self) -> Vec<u32> {
+    pub(crate) fn far_first_leaves(&self) -> Vec<u32> {
         // (group, steps in from the far end, group size); ordered by steps / size, exactly.
         let mut keyed: Vec<(u32, u32, u32)> = self
             .leaf_groups

@@ -189,18 +189,18 @@ pub struct GeneratedTree {
 
 impl SpeciesDesc {
     /// The most levels of branching a species may have.
-    pub const MAX_LEVELS: usize = 16;
+    pub(crate) const MAX_LEVELS: usize = 16;
 
     /// The largest trunk length, trunk radius, leaf size and spread, and root depth, in
     /// model units.
-    pub const MAX_SIZE: f32 = 10_000.0;
+    pub(crate) const MAX_SIZE: f32 = 10_000.0;
 
     /// The smallest length, radius (a branch's, of its parent's) and taper, and leaf size.
-    pub const MIN_SIZE: f32 = 1e-3;
+    pub(crate) const MIN_SIZE: f32 = 1e-3;
 
     /// The most vertices (estimated from the levels) a species may generate: about ten
     /// times the largest shipped species.
-    pub const MAX_VERTICES: u64 = 600_000;
+    pub(crate) const MAX_VERTICES: u64 = 600_000;
 
     /// Parses and validates a species description.
     pub fn from_ron_str(text: &str) -> Result<Self, SpeciesError> {
@@ -210,7 +210,7 @@ impl SpeciesDesc {
     }
 
     /// Checks every value is in range.
-    pub fn validate(&self) -> Result<(), SpeciesError> {
+    pub(crate) fn validate(&self) -> Result<(), SpeciesError> {
         if self.levels.is_empty() {
             return Err(invalid("levels".into(), "needs at least the trunk"));
         }
@@ -545,7 +545,7 @@ fn any_perpendicular(v: Vec3) -> Vec3 {
 
 /// Appends a tapered tube along `points` with `radii`, `k` vertices per ring, closed by a
 /// pointed tip one ring-spacing beyond the last ring, open at its start.
-pub fn tube(out: &mut GeneratedTree, points: &[Vec3], radii: &[f32], k: usize, twist: f32) {
+pub(crate) fn tube(out: &mut GeneratedTree, points: &[Vec3], radii: &[f32], k: usize, twist: f32) {
     let first = out.trunk_positions.len() as u32;
     let mut frame_u = any_perpendicular((points[1] - points[0]).normalize());
     for (i, (&p, &r)) in points.iter().zip(radii).enumerate() {

@@ -17,7 +17,7 @@ pub struct SpringSet {
     /// Fixed simulation step, seconds.
     pub time_step: f32,
     /// An instance whose farthest-moving ring would move less than this many pixels on
-    /// screen (its largest spring displacement × its rig's [`reach`](super::WindRig::reach),
+    /// screen (its largest spring displacement × its rig's `reach`,
     /// projected at its distance) is not moved at all (motion level of detail); also the
     /// per-ring threshold below which movement accumulates along a path instead of being
     /// applied.
@@ -59,7 +59,7 @@ pub enum SpringSetError {
 
 /// The most a spring may be displaced at rest under its strongest wind, in world units:
 /// a push a thousand units long bends any tree flat.
-pub const MAX_WIND_DISPLACEMENT: f32 = 1000.0;
+pub(crate) const MAX_WIND_DISPLACEMENT: f32 = 1000.0;
 
 impl SpringSet {
     /// Parses and validates a spring set (optional fields may be written bare).
@@ -71,7 +71,7 @@ impl SpringSet {
 
     /// Checks ranges, and that the time step is small enough for every spring to stay
     /// stable (semi-implicit Euler needs `ω·dt < 2`; this asks for `ω·dt ≤ 1`).
-    pub fn validate(&self) -> Result<(), SpringSetError> {
+    pub(crate) fn validate(&self) -> Result<(), SpringSetError> {
         if !(self.time_step.is_finite() && self.time_step > 0.0 && self.time_step <= 0.1) {
             return Err(invalid("time_step".into(), "must be in (0, 0.1] seconds"));
         }

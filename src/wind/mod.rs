@@ -1,6 +1,6 @@
 //! Spring-driven wind (thesis chapter 5): springs, rings associated with springs, the
 //! ring offsets of a moving tree, and the stage that computes them every frame into the
-//! [`RingOffsetTable`] the renderer applies.
+//! `RingOffsetTable` the renderer applies.
 
 mod asset;
 mod motion;
@@ -8,10 +8,14 @@ mod plugin;
 mod spring;
 mod table;
 
-pub use asset::{MAX_WIND_DISPLACEMENT, SpringSet, SpringSetError, SpringSetLoader};
-pub use motion::{
-    AssociationRule, RingMotion, WindRig, associate, moved_bounds, ring_offsets, update_interval,
-};
+pub use asset::{SpringSet, SpringSetError, SpringSetLoader};
+pub use motion::AssociationRule;
+#[cfg(test)]
+pub(crate) use motion::update_interval;
+#[cfg(any(test, feature = "testing"))]
+pub(crate) use motion::{WindRig, associate, moved_bounds, ring_offsets};
 pub use plugin::{WindPlugin, WindSettings, WindStats};
-pub use spring::{FixedStepper, GustDesc, Spring, SpringDesc, WindDesc};
-pub use table::RingOffsetTable;
+
+pub use spring::{GustDesc, SpringDesc, WindDesc};
+#[cfg(any(test, feature = "render"))]
+pub(crate) use table::RingOffsetTable;

@@ -46,7 +46,7 @@ impl Default for AssociationRule {
 
 /// How one ring moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RingMotion {
+pub(crate) struct RingMotion {
     /// The spring it follows, if any.
     pub spring: Option<u32>,
     /// Fraction of the spring's displacement it follows.
@@ -59,7 +59,7 @@ pub struct RingMotion {
 
 /// Associates every ring of `model` with the first matching rule (the root rings never
 /// move). Springs outside `spring_count` are ignored.
-pub fn associate(
+pub(crate) fn associate(
     model: &TreeModel,
     rules: &[AssociationRule],
     spring_count: usize,
@@ -111,7 +111,7 @@ fn has_moving_ancestor(motions: &[RingMotion], model: &TreeModel, mut ring: u32)
 /// What the motion of one tree type under one spring set needs per ring, in ring order:
 /// built once from [`associate`]'s result, then used for every instance of the type.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct WindRig {
+pub(crate) struct WindRig {
     rings: Vec<RigRing>,
     /// Each ring's sphere at rest: centre (`xyz`) and half its diameter (`w`), packed for
     /// [`moved_bounds`].
@@ -149,7 +149,7 @@ impl WindRig {
     /// The rig of `model` with its rings associated as `motions` says (one entry per
     /// ring, as [`associate`] returns). A ring at its parent's centre has no direction to
     /// bend and does not move on its own.
-    pub fn new(model: &TreeModel, motions: &[RingMotion]) -> Self {
+    pub(crate) fn new(model: &TreeModel, motions: &[RingMotion]) -> Self {
         let rings = model
             .rings
             .iter()
@@ -218,18 +218,8 @@ impl WindRig {
     /// displacements, before the angle limits): the sum of influences along the longest
     /// moving path. Motion LOD multiplies the largest spring displacement by it — a tip
     /// twenty rings up moves about twenty times as far as one spring's displacement.
-    pub fn reach(&self) -> f32 {
+    pub(crate) fn reach(&self) -> f32 {
         self.reach
-    }
-
-    /// Rings of the model it was built for.
-    pub fn len(&self) -> usize {
-        self.rings.len()
-    }
-
-    /// Built for a model without rings.
-    pub fn is_empty(&self) -> bool {
-        self.rings.is_empty()
     }
 }
 
@@ -257,7 +247,7 @@ impl Default for RingMotion {
 ///
 /// `offsets` gets one entry per ring (SIMD-width vectors: the renderer pads each offset
 /// to four floats anyway).
-pub fn ring_offsets(
+pub(crate) fn ring_offsets(
     rig: &WindRig,
     springs: &[Vec3],
     rotation: Quat,
@@ -365,7 +355,7 @@ fn bend(ring: &RigRing, push: Vec3A) -> Vec3A {
 /// The culling shape of a moved instance of the tree `rig` was built for (model space),
 /// written into `out`: a sphere per ring around its moved centre makes the trunk box, leaf
 /// groups are translated with their terminal ring, and the whole box holds both.
-pub fn moved_bounds(rig: &WindRig, offsets: &[Vec3A], out: &mut CullShape) {
+pub(crate) fn moved_bounds(rig: &WindRig, offsets: &[Vec3A], out: &mut CullShape) {
     let (mut min, mut max) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
     for (sphere, offset) in rig.ring_spheres.iter().zip(offsets) {
         let center = Vec3A::from_vec4(*sphere) + *offset;
@@ -407,7 +397,7 @@ pub fn moved_bounds(rig: &WindRig, offsets: &[Vec3A], out: &mut CullShape) {
 /// by a roughly fixed fraction of its amplitude per frame, so the jump a held tree makes
 /// when it is next updated stays about the same size on screen whatever its interval.
 /// `full_rate_pixels` of 0 (or less, or not a number) updates every instance every frame.
-pub fn update_interval(motion_pixels: f32, full_rate_pixels: f32, max_interval: u32) -> u32 {
+pub(crate) fn update_interval(motion_pixels: f32, full_rate_pixels: f32, max_interval: u32) -> u32 {
     let ratio = full_rate_pixels / motion_pixels;
     // Also for a zero, negative or NaN `full_rate_pixels`.
     if ratio.is_nan() || ratio < 2.0 {

@@ -30,7 +30,7 @@ pub struct WindSettings {
     /// Update-rate level of detail: a moving tree whose farthest ring moves at least this
     /// many pixels from rest is updated every frame, one moving half as far every second
     /// frame, and so on up to `max_update_interval` (see
-    /// [`update_interval`](super::update_interval)); in between it keeps its last
+    /// `update_interval`); in between it keeps its last
     /// offsets. Updates are staggered across instances so the cost is even frame to
     /// frame. 0 updates every moving tree every frame. Default: `8.0`.
     pub full_rate_pixels: f32,
@@ -69,6 +69,9 @@ pub struct WindStats {
     /// Time of the per-instance work (ring offsets and moved bounds), milliseconds;
     /// stepping the springs themselves (a few per set) is not included.
     pub update_ms: f32,
+    /// Ring offsets held for the moving instances after this frame (their memory:
+    /// 12 bytes each).
+    pub rings_held: u32,
 }
 
 #[derive(Resource, Default)]
@@ -78,7 +81,7 @@ struct WindState {
 }
 
 /// Registers spring-set assets and runs the wind stage in `SherwoodSystems::Animate`
-/// (see [`WindSettings`] and [`RingOffsetTable`]).
+/// (see [`WindSettings`] and `RingOffsetTable`).
 #[derive(Default)]
 pub struct WindPlugin;
 
@@ -430,6 +433,7 @@ fn move_rings(
     }
     *stats = WindStats {
         update_ms: start_time.elapsed().as_secs_f32() * 1000.0,
+        rings_held: table.rings_held() as u32,
         ..counts
     };
 }

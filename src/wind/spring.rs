@@ -87,7 +87,7 @@ impl Default for SpringDesc {
 
 /// A spring in motion.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Spring {
+pub(crate) struct Spring {
     desc: SpringDesc,
     /// Displacement from rest.
     pub displacement: Vec3,
@@ -102,7 +102,7 @@ pub struct Spring {
 
 impl Spring {
     /// A spring at rest.
-    pub fn new(desc: SpringDesc) -> Self {
+    pub(crate) fn new(desc: SpringDesc) -> Self {
         let rng = SplitMix64::new(desc.seed ^ 0x0057_1DE0);
         let mut spring = Self {
             desc,
@@ -116,11 +116,6 @@ impl Spring {
         };
         spring.schedule_gust(0.0);
         spring
-    }
-
-    /// Its parameters.
-    pub fn desc(&self) -> &SpringDesc {
-        &self.desc
     }
 
     fn schedule_gust(&mut self, after: f32) {
@@ -138,7 +133,7 @@ impl Spring {
     }
 
     /// The wind's force at the spring's current time.
-    pub fn wind_force(&self) -> Vec3 {
+    pub(crate) fn wind_force(&self) -> Vec3 {
         let w = &self.desc.wind;
         let g = &w.gusts;
         let t = self.time - self.gust_start;
@@ -155,7 +150,7 @@ impl Spring {
     }
 
     /// One semi-implicit Euler step of `dt` seconds.
-    pub fn step(&mut self, dt: f32) {
+    pub(crate) fn step(&mut self, dt: f32) {
         let d = &self.desc;
         let force = -d.stiffness * self.displacement + self.wind_force();
         let mass = if d.mass > 0.0 { d.mass } else { 1.0 };
@@ -178,7 +173,7 @@ impl Spring {
 
 /// Runs springs on a fixed time step, independent of the frame rate.
 #[derive(Clone, Debug, PartialEq)]
-pub struct FixedStepper {
+pub(crate) struct FixedStepper {
     /// The step, seconds.
     pub step: f32,
     accumulated: f32,
@@ -186,7 +181,7 @@ pub struct FixedStepper {
 
 impl FixedStepper {
     /// A stepper of `step` seconds (at least 0.1 ms).
-    pub fn new(step: f32) -> Self {
+    pub(crate) fn new(step: f32) -> Self {
         Self {
             step: if step.is_finite() {
                 step.max(1e-4)
@@ -199,7 +194,7 @@ impl FixedStepper {
 
     /// Advances `springs` by `elapsed` seconds of frame time, in whole steps (at most a
     /// quarter of a second per call, so a stalled frame does not freeze the app).
-    pub fn advance(&mut self, springs: &mut [Spring], elapsed: f32) -> u32 {
+    pub(crate) fn advance(&mut self, springs: &mut [Spring], elapsed: f32) -> u32 {
         if !(elapsed.is_finite() && elapsed > 0.0) {
             return 0;
         }

@@ -13,7 +13,7 @@ use bevy::prelude::*;
 /// at rest. The memory held follows the most instances that moved at once, not the
 /// forest's size.
 #[derive(Resource, Clone, Debug, Default)]
-pub struct RingOffsetTable {
+pub(crate) struct RingOffsetTable {
     /// Per instance, `[start, len]` of its block in `offsets`; `len` 0 at rest.
     spans: Vec<[u32; 2]>,
     offsets: Vec<Vec3A>,
@@ -24,14 +24,15 @@ pub struct RingOffsetTable {
 
 impl RingOffsetTable {
     /// A table of `instances` instances, every one at rest.
-    pub fn at_rest(instances: usize) -> Self {
+    #[cfg(test)]
+    pub(crate) fn at_rest(instances: usize) -> Self {
         let mut table = Self::default();
         table.reset(instances);
         table
     }
 
     /// Puts every instance at rest and sizes the table for `instances` instances.
-    pub fn reset(&mut self, instances: usize) {
+    pub(crate) fn reset(&mut self, instances: usize) {
         self.spans.clear();
         self.spans.resize(instances, [0, 0]);
         self.offsets.clear();
@@ -40,23 +41,21 @@ impl RingOffsetTable {
     }
 
     /// Instances in the table, moving or not.
-    pub fn len(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
         self.spans.len()
     }
 
-    /// Whether the table has no instances.
-    pub fn is_empty(&self) -> bool {
-        self.spans.is_empty()
-    }
-
     /// Instances with offsets.
-    pub fn moving(&self) -> u32 {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn moving(&self) -> u32 {
         self.moving
     }
 
     /// Instance `instance`'s ring offsets, or `None` while it is at rest (or past the
     /// table).
-    pub fn get(&self, instance: usize) -> Option<&[Vec3A]> {
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn get(&self, instance: usize) -> Option<&[Vec3A]> {
         let [start, len] = *self.spans.get(instance)?;
         (len > 0).then(|| &self.offsets[start as usize..(start + len) as usize])
     }
@@ -64,7 +63,7 @@ impl RingOffsetTable {
     /// Gives `instance` the offsets `rings` (one per ring of its model); an empty slice
     /// puts it at rest. An instance past the table is left out: the table is sized by
     /// [`reset`](Self::reset).
-    pub fn set(&mut self, instance: usize, rings: &[Vec3A]) {
+    pub(crate) fn set(&mut self, instance: usize, rings: &[Vec3A]) {
         let Some(&[_, len]) = self.spans.get(instance) else {
             return;
         };
@@ -92,7 +91,7 @@ impl RingOffsetTable {
 
     /// Puts `instance` back at rest; its block is kept for the next instance of the same
     /// ring count to move.
-    pub fn rest(&mut self, instance: usize) {
+    pub(crate) fn rest(&mut self, instance: usize) {
         let Some(span) = self.spans.get_mut(instance) else {
             return;
         };
@@ -107,7 +106,7 @@ impl RingOffsetTable {
 
     /// Takes `instance` out as `Vec::swap_remove` does: the last instance (and its
     /// offsets) takes its index.
-    pub fn swap_remove(&mut self, instance: usize) {
+    pub(crate) fn swap_remove(&mut self, instance: usize) {
         if instance < self.spans.len() {
             self.rest(instance);
             self.spans.swap_remove(instance);
@@ -115,13 +114,13 @@ impl RingOffsetTable {
     }
 
     /// Adds an instance at rest at the end.
-    pub fn push(&mut self) {
+    pub(crate) fn push(&mut self) {
         self.spans.push([0, 0]);
     }
 
     /// Ring offsets held, moving instances' and free blocks' together: the table's
     /// memory is this times 16 bytes (plus 8 per instance).
-    pub fn rings_held(&self) -> usize {
+    pub(crate) fn rings_held(&self) -> usize {
         self.offsets.len()
     }
 }

@@ -24,7 +24,7 @@ use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::tree::TreeModel;
 
 pub(super) use fixed::draw_everything;
-pub use hierarchical::HierarchicalCut;
+pub(crate) use hierarchical::HierarchicalCut;
 
 /// The strategy of each kind, made when first chosen and kept (with what it remembers
 /// of its last frame) while others run.

@@ -64,7 +64,7 @@ pub(super) enum Drawn {
 /// strategy, as the solver saw it: for inspection and tests (for example re-solving
 /// `hierarchy` from `seed` with a fresh [`HierarchicalLod`] gives `selection`).
 #[derive(Resource, Default, Debug)]
-pub struct HierarchicalCut {
+pub(crate) struct HierarchicalCut {
     /// The frame's hierarchy: visible boxes (with their group impostors' rungs) over
     /// visible trees over their trunk and leaves objects (each with its rungs).
     pub hierarchy: LodHierarchy,

@@ -6,7 +6,7 @@ mod cut;
 
 use bevy::prelude::*;
 
-pub use cut::HierarchicalCut;
+pub(crate) use cut::HierarchicalCut;
 use cut::{Drawn, HierarchicalFrame, HierarchyInputs, SearchedRungs};
 
 use super::{HandOut, Outcome, Strategy};

@@ -1,12 +1,12 @@
 //! The per-object searches of the time-critical modes, on a shipped species.
 
-mod common;
+use crate::testing as common;
 
+use crate::cost::Calibration;
+use crate::draw::TreeDrawList;
+use crate::lod::select::*;
+use crate::tree::{PixelRange, Projection, TreeModel};
 use bevy::math::Vec3;
-use bevy_sherwood::cost::Calibration;
-use bevy_sherwood::draw::TreeDrawList;
-use bevy_sherwood::lod::select::*;
-use bevy_sherwood::tree::{PixelRange, Projection, TreeModel};
 
 fn model() -> TreeModel {
     common::species("grand")
@@ -73,15 +73,10 @@ fn a_trunk_never_costs_more_than_its_time_unless_truncated_and_grows_with_it() {
         assert_eq!(list.trunk_triangles, 0..total, "depth {depth}");
         // Just short of that, every segment the static LOD does not drop is triangles.
         let full = trunk_tc(&model, &v, &costs, f32::INFINITY, &mut list).cost;
-        let dropped = bevy_sherwood::tree::trunk_lod(
-            &model,
-            1.0,
-            depth,
-            &v.projection,
-            PixelRange::default(),
-        )
-        .dropped
-        .end;
+        let dropped =
+            crate::tree::trunk_lod(&model, 1.0, depth, &v.projection, PixelRange::default())
+                .dropped
+                .end;
         let first = model.segments.triangle_offsets[dropped as usize];
         let enough = costs.triangles(total - first, trunk_triangle_area(&model, &v));
         if enough < full {
@@ -257,7 +252,7 @@ fn a_tree_at_the_camera_fills_the_screen_once() {
     let viewport = 960.0 * 540.0;
     let unbounded = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
     let costs = unbounded.clone().within_viewport(viewport);
-    let at_camera = bevy_sherwood::budget::MIN_DEPTH;
+    let at_camera = crate::budget::MIN_DEPTH;
     let v = view(at_camera);
     let g = groups(&model, at_camera);
     let mut list = TreeDrawList::default();

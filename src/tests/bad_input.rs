@@ -4,17 +4,17 @@
 //! dozen cases per format in `cargo test`, as many as `SHERWOOD_FUZZ_CASES` says for a
 //! long run (`SHERWOOD_FUZZ_CASES=10000 cargo test --release --test bad_input`).
 
-mod common;
+use crate::testing as common;
 
-use bevy::math::Vec3;
-use bevy_sherwood::cost::{Calibration, CalibrationError};
-use bevy_sherwood::ecosystem::{EcosystemDesc, TerrainDesc};
-use bevy_sherwood::tree::{
+use super::fuzz::{cases, mutate, mutation};
+use crate::cost::{Calibration, CalibrationError};
+use crate::ecosystem::{EcosystemDesc, TerrainDesc};
+use crate::tree::{
     AnalysisOptions, MeshData, PixelRange, Projection, SpeciesDesc, TreeAnalysisError,
     TreeFileError, TreeModel, analyze, trunk_lod,
 };
-use bevy_sherwood::wind::SpringSet;
-use common::fuzz::{cases, mutate, mutation};
+use crate::wind::SpringSet;
+use bevy::math::Vec3;
 use proptest::prelude::*;
 
 fn asset(path: &str) -> String {
@@ -254,7 +254,7 @@ fn a_large_forest_places_in_near_linear_work() {
     );
 }
 
-// Mutation fuzzing of the shipped assets (see `common::fuzz`).
+// Mutation fuzzing of the shipped assets (see `super::fuzz`).
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(cases()))]

@@ -1,8 +1,8 @@
 //! Box-hierarchy culling against brute force on random views.
 
+use crate::culling::*;
+use crate::tree::{BoundingSphere, Bounds};
 use bevy::math::{Affine3A, Mat4, Quat, Vec3};
-use bevy_sherwood::culling::*;
-use bevy_sherwood::tree::{BoundingSphere, Bounds};
 use proptest::prelude::*;
 
 fn shapes() -> Vec<CullShape> {

@@ -3,15 +3,14 @@
 //! load what it wrote. Run with `cargo test --features gpu-tests`.
 #![cfg(feature = "gpu-tests")]
 
-mod common;
-#[path = "../examples/support/windowless.rs"]
-mod windowless;
+use crate::testing as common;
+use crate::testing as windowless;
 
+use crate::cost::read_calibration;
+use crate::prelude::*;
+use crate::render::{CalibrationProgress, CalibrationRunPlugin, CalibrationSettings};
 use bevy::log::LogPlugin;
 use bevy::prelude::*;
-use bevy_sherwood::cost::read_calibration;
-use bevy_sherwood::prelude::*;
-use bevy_sherwood::render::{CalibrationProgress, CalibrationRunPlugin, CalibrationSettings};
 
 #[test]
 fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
@@ -20,18 +19,23 @@ fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
         std::process::id()
     ));
     let mut app = App::new();
-    app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
-        .add_plugins((SherwoodPlugins, CalibrationRunPlugin))
-        .insert_resource(CalibrationSettings {
-            out: Some(out.clone()),
-            settle_frames: 2,
-            frames_per_sample: 3,
-            // Large enough that each family's time stands well above the frame's jitter.
-            primitive_counts: vec![60_000, 180_000],
-            sizes: vec![1, 8],
-            logic_targets_ms: vec![100.0],
-            logic_positions: 2,
-        });
+    app.add_plugins(
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        )
+        .disable::<LogPlugin>(),
+    )
+    .add_plugins((SherwoodPlugins, CalibrationRunPlugin))
+    .insert_resource(CalibrationSettings {
+        out: Some(out.clone()),
+        settle_frames: 2,
+        frames_per_sample: 3,
+        // Large enough that each family's time stands well above the frame's jitter.
+        primitive_counts: vec![60_000, 180_000],
+        sizes: vec![1, 8],
+        logic_targets_ms: vec![100.0],
+        logic_positions: 2,
+    });
     windowless::finish_plugins(&mut app);
     let mut desc = common::default_ecosystem();
     desc.set_total_trees(60)
@@ -70,9 +74,8 @@ fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
     // primitives take longer in every family, and 8-pixel points more than 1-pixel ones
     // (on lavapipe about twice as much; the debug build's extraction, the same for both,
     // narrows it).
-    let time = |cost: &bevy_sherwood::cost::LinearCost, n: f32, pixels_each: f32| {
-        cost.time(n, n * pixels_each)
-    };
+    let time =
+        |cost: &crate::cost::LinearCost, n: f32, pixels_each: f32| cost.time(n, n * pixels_each);
     for (family, cost, pixels) in [
         ("triangles", calibration.triangles, 20.0),
         ("1 px lines", calibration.lines[0], 3.0),

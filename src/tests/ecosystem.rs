@@ -1,7 +1,8 @@
 //! Ecosystems: terrain, placement, and the file format's errors.
 
+use crate::ecosystem::placement::tilt_from_normal;
+use crate::ecosystem::*;
 use bevy::math::Vec3;
-use bevy_sherwood::ecosystem::*;
 
 fn shipped(name: &str) -> EcosystemDesc {
     let path = format!(

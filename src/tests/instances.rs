@@ -1,17 +1,17 @@
 //! The instance table: every `TreeInstance`, whoever spawned it, is culled, budgeted and
 //! drawn; moved trees are culled where they are; removed ones leave the table.
 
-mod common;
+use crate::testing as common;
 
+use crate::culling::{ForestCulling, InstanceVisibility};
+use crate::draw::TreeDrawList;
+use crate::prelude::*;
 use bevy::prelude::*;
-use bevy_sherwood::culling::{ForestCulling, InstanceVisibility};
-use bevy_sherwood::draw::TreeDrawList;
-use bevy_sherwood::prelude::*;
 
 const EYE: Vec3 = Vec3::new(-5.0, 20.0, -5.0);
 
 /// The default ecosystem with `trees` trees, its seed moved by `seed_offset`.
-fn other_forest(trees: u32, seed_offset: u64) -> bevy_sherwood::ecosystem::EcosystemDesc {
+fn other_forest(trees: u32, seed_offset: u64) -> crate::ecosystem::EcosystemDesc {
     let mut desc = common::default_ecosystem();
     desc.set_total_trees(trees)
         .expect("the default forest has trees to scale");
@@ -241,13 +241,17 @@ fn a_tree_with_a_fixed_draw_list_is_left_alone() {
 #[cfg(feature = "gpu-tests")]
 #[test]
 fn the_forest_pass_draws_every_producers_trees() {
-    #[path = "../examples/support/windowless.rs"]
-    mod windowless;
+    use crate::testing as windowless;
     use bevy::log::LogPlugin;
 
     let mut app = App::new();
-    app.add_plugins(windowless::windowless_plugins().disable::<LogPlugin>())
-        .add_plugins(SherwoodPlugins);
+    app.add_plugins(
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        )
+        .disable::<LogPlugin>(),
+    )
+    .add_plugins(SherwoodPlugins);
     windowless::finish_plugins(&mut app);
     let forests: Vec<Entity> = (0..2)
         .map(|seed_offset| common::spawn_forest(&mut app, other_forest(30, seed_offset)))

@@ -1,14 +1,14 @@
 //! A headless app: a forest spawned from the default ecosystem file, culled against a
 //! view, respawned on change.
 
-mod common;
+use crate::testing as common;
 
+use crate::culling::CullView;
+use crate::culling::ForestCulling;
+use crate::culling::{CullResult, FrustumPlanes, MovedShapes, cull_brute_force};
+use crate::ecosystem::{ForestState, ForestTerrain};
+use crate::prelude::*;
 use bevy::prelude::*;
-use bevy_sherwood::culling::CullView;
-use bevy_sherwood::culling::ForestCulling;
-use bevy_sherwood::culling::{CullResult, FrustumPlanes, MovedShapes, cull_brute_force};
-use bevy_sherwood::ecosystem::{ForestState, ForestTerrain};
-use bevy_sherwood::prelude::*;
 
 fn app() -> App {
     common::headless_app()
@@ -50,12 +50,12 @@ fn blow(app: &mut App) {
 }
 
 /// Edits the default spring set in place.
-fn edit_spring_set(app: &mut App, edit: impl FnOnce(&mut bevy_sherwood::wind::SpringSet)) {
+fn edit_spring_set(app: &mut App, edit: impl FnOnce(&mut crate::wind::SpringSet)) {
     let set = app.world().resource::<WindSettings>().sets[0].clone();
     edit(
         &mut app
             .world_mut()
-            .resource_mut::<Assets<bevy_sherwood::wind::SpringSet>>()
+            .resource_mut::<Assets<crate::wind::SpringSet>>()
             .get_mut(&set)
             .unwrap(),
     );
@@ -160,7 +160,7 @@ fn a_species_that_fails_to_load_does_not_hold_the_forest_back() {
         .result
         .visibility
         .iter()
-        .filter(|v| **v != bevy_sherwood::culling::InstanceVisibility::Invisible)
+        .filter(|v| **v != crate::culling::InstanceVisibility::Invisible)
         .count();
     assert_eq!(
         visible, 400,
@@ -170,8 +170,8 @@ fn a_species_that_fails_to_load_does_not_hold_the_forest_back() {
 
 #[test]
 fn wind_moves_visible_trees_only_and_can_be_turned_off() {
+    use crate::wind::{RingOffsetTable, WindSettings, WindStats};
     use bevy::time::TimeUpdateStrategy;
-    use bevy_sherwood::wind::{RingOffsetTable, WindSettings, WindStats};
 
     let mut app = app();
     app.insert_resource(TimeUpdateStrategy::ManualDuration(
@@ -203,9 +203,7 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
             .is_some_and(|o| o.iter().any(|o| o.length() > 1e-4))
     };
     let visible: Vec<bool> = (0..600)
-        .map(|i| {
-            culling.result.visibility[i] != bevy_sherwood::culling::InstanceVisibility::Invisible
-        })
+        .map(|i| culling.result.visibility[i] != crate::culling::InstanceVisibility::Invisible)
         .collect();
     assert!(table.moving() > 0);
     for (i, _) in visible.iter().enumerate().filter(|(_, v)| !**v) {
@@ -231,7 +229,7 @@ fn wind_moves_visible_trees_only_and_can_be_turned_off() {
 
 #[test]
 fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
-    use bevy_sherwood::wind::{RingOffsetTable, WindStats};
+    use crate::wind::{RingOffsetTable, WindStats};
 
     let mut app = forest_in_wind(600);
     let eye = CORNER_EYE;
@@ -252,7 +250,7 @@ fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
     let (mut moved, mut still) = (Vec::new(), Vec::new());
     let culling = app.world().resource::<ForestCulling>();
     for (i, entity) in state.instances.iter().enumerate() {
-        if culling.result.visibility[i] == bevy_sherwood::culling::InstanceVisibility::Invisible {
+        if culling.result.visibility[i] == crate::culling::InstanceVisibility::Invisible {
             continue;
         }
         let distance = app
@@ -284,7 +282,7 @@ fn motion_lod_moves_near_trees_and_leaves_far_ones_still() {
 
 #[test]
 fn edited_association_rules_take_effect_on_the_next_frame() {
-    use bevy_sherwood::wind::RingOffsetTable;
+    use crate::wind::RingOffsetTable;
 
     let mut app = forest_in_wind(60);
     blow(&mut app);
@@ -309,7 +307,7 @@ fn edited_association_rules_take_effect_on_the_next_frame() {
 
 #[test]
 fn slowly_moving_trees_are_updated_less_often_and_hold_their_bend_in_between() {
-    use bevy_sherwood::wind::{RingOffsetTable, WindSettings, WindStats};
+    use crate::wind::{RingOffsetTable, WindSettings, WindStats};
 
     let mut app = forest_in_wind(600);
     blow(&mut app);

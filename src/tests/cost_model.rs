@@ -1,7 +1,7 @@
 //! Cost-model groundwork: fitting, logic interpolation, calibration files. The online
 //! learning is tested in `cost_learning.rs`.
 
-use bevy_sherwood::cost::*;
+use crate::cost::*;
 
 #[test]
 fn fitting_recovers_known_parameters_from_noisy_samples() {

@@ -1,11 +1,12 @@
 //! Packing tree geometry and draw lists into the render pass's records (pure, headless).
 
-mod common;
+use crate::testing as common;
 use common::species;
 
+use crate::draw::packing::*;
+use crate::draw::*;
+use crate::tree::TreeModel;
 use bevy::math::Vec3;
-use bevy_sherwood::draw::*;
-use bevy_sherwood::tree::TreeModel;
 use proptest::prelude::*;
 
 #[test]
@@ -319,7 +320,7 @@ proptest! {
             .iter()
             .map(|&len| {
                 start += len;
-                bevy_sherwood::tree::LeafGroup { leaves: start - len..start, ..template.clone() }
+                crate::tree::LeafGroup { leaves: start - len..start, ..template.clone() }
             })
             .collect();
         let total = start as usize;

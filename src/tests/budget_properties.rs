@@ -1,7 +1,7 @@
 //! Property tests of the budget strategies over random instances.
 
-use bevy_sherwood::budget::oracle::{hierarchy_optimum, lp_upper_bound, optimal_selection};
-use bevy_sherwood::budget::*;
+use crate::budget::oracle::{hierarchy_optimum, lp_upper_bound, optimal_selection};
+use crate::budget::*;
 use proptest::prelude::*;
 
 const EPS: f64 = 1e-6;

@@ -1,16 +1,15 @@
-//! Helpers shared by the integration tests (each test binary uses what it needs).
-#![allow(
-    dead_code,
-    reason = "each test binary includes this module and uses a different part of it"
-)]
+//! Helpers for headless Sherwood apps, used by the crate's tests and benches (feature
+//! `testing`): an app with every plugin and no window, a view without a camera, a forest
+//! of any size, and waiting until it has loaded. The species and ecosystems named here are
+//! the ones this crate ships under `assets/`.
 
-pub mod fuzz;
+use crate::culling::CullView;
+use crate::prelude::*;
+use crate::tree::SpeciesDesc;
+pub mod workloads;
 
 use bevy::asset::{AssetPlugin, LoadState};
 use bevy::prelude::*;
-use bevy_sherwood::culling::CullView;
-use bevy_sherwood::prelude::*;
-use bevy_sherwood::tree::SpeciesDesc;
 
 /// A shipped species (`assets/species/NAME.species.ron`), generated and analysed.
 pub fn species(name: &str) -> TreeModel {
@@ -72,13 +71,13 @@ pub fn settle(app: &mut App, handle: &Handle<TreeModel>) -> LoadState {
 }
 
 /// The shipped default ecosystem (`assets/forests/default.ecosystem.ron`), parsed.
-pub fn default_ecosystem() -> bevy_sherwood::ecosystem::EcosystemDesc {
+pub fn default_ecosystem() -> crate::ecosystem::EcosystemDesc {
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/assets/forests/default.ecosystem.ron"
     ))
     .unwrap();
-    bevy_sherwood::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap()
+    crate::ecosystem::EcosystemDesc::from_ron_str(&text).unwrap()
 }
 
 /// Numbers uniform in [0, 1), the same stream on every call (xorshift64 from a fixed
@@ -94,7 +93,7 @@ pub fn unit_noise() -> impl FnMut() -> f32 {
 }
 
 /// Spawns a forest of `desc` in `app`.
-pub fn spawn_forest(app: &mut App, desc: bevy_sherwood::ecosystem::EcosystemDesc) -> Entity {
+pub fn spawn_forest(app: &mut App, desc: crate::ecosystem::EcosystemDesc) -> Entity {
     let handle = app
         .world_mut()
         .resource_mut::<Assets<Ecosystem>>()
@@ -168,9 +167,7 @@ pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
     let clip_from_world = Mat4::perspective_infinite_reverse_rh(fov, 1.0, 0.1)
         * Mat4::look_at_rh(eye, target, Vec3::Y);
     let view = (
-        CullView(bevy_sherwood::culling::FrustumPlanes::from_clip_from_world(
-            clip_from_world,
-        )),
+        CullView::from_clip_from_world(clip_from_world),
         LodView {
             position: eye,
             forward: (target - eye).normalize(),
@@ -195,7 +192,7 @@ pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
 
 /// Runs one frame and returns the cost model's prediction of it (kept until the frame is
 /// measured).
-pub fn predicted_frame(app: &mut App) -> bevy_sherwood::cost::FramePrediction {
+pub fn predicted_frame(app: &mut App) -> crate::cost::FramePrediction {
     app.update();
     let frame = app.world().resource::<LodDiagnostics>().frame;
     *app.world()
@@ -210,7 +207,7 @@ pub fn until_visible(app: &mut App) {
         app.update();
         let loading = app
             .world()
-            .resource::<bevy_sherwood::culling::ForestCulling>()
+            .resource::<crate::culling::ForestCulling>()
             .models_loading();
         if loading == 0 && app.world().resource::<LodDiagnostics>().visible_instances > 0 {
             return;
@@ -239,9 +236,7 @@ pub fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)
     let clip_from_world = Mat4::perspective_infinite_reverse_rh(0.8, 16.0 / 9.0, 0.1)
         * Mat4::look_at_rh(eye, target, Vec3::Y);
     app.world_mut().spawn((
-        CullView(bevy_sherwood::culling::FrustumPlanes::from_clip_from_world(
-            clip_from_world,
-        )),
+        CullView::from_clip_from_world(clip_from_world),
         LodView {
             position: eye,
             forward: (target - eye).normalize(),
@@ -252,9 +247,7 @@ pub fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)
     extra(&mut app);
     for _ in 0..3000 {
         app.update();
-        let culling = app
-            .world()
-            .resource::<bevy_sherwood::culling::ForestCulling>();
+        let culling = app.world().resource::<crate::culling::ForestCulling>();
         if culling.hierarchy.is_some()
             && culling.models_loading() == 0
             && app.world().resource::<LodDiagnostics>().visible_instances > 0
@@ -264,4 +257,43 @@ pub fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)
         std::thread::sleep(std::time::Duration::from_millis(2));
     }
     panic!("the forest never finished loading");
+}
+
+/// `plugins` (Bevy's `DefaultPlugins` with `WinitPlugin` disabled, built by the caller,
+/// who has winit) set up to render into images without a window, one frame per
+/// `app.update()`: no primary window, pipelines compiled before the frame that needs them,
+/// the render world updated on the calling thread, and assets read from this crate's
+/// `assets/` wherever the binary is started. Call [`finish_plugins`] before the first
+/// update.
+#[cfg(feature = "render")]
+pub fn windowless_plugins(plugins: bevy::app::PluginGroupBuilder) -> bevy::app::PluginGroupBuilder {
+    use bevy::render::RenderPlugin;
+    use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+    use bevy::window::ExitCondition;
+    plugins
+        .set(AssetPlugin {
+            file_path: concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into(),
+            ..default()
+        })
+        .set(WindowPlugin {
+            primary_window: None,
+            exit_condition: ExitCondition::DontExit,
+            close_when_requested: false,
+            ..default()
+        })
+        .set(RenderPlugin {
+            synchronous_pipeline_compilation: true,
+            ..default()
+        })
+        .disable::<PipelinedRenderingPlugin>()
+}
+
+/// Completes plugin set-up (including the renderer's asynchronous start), which
+/// `App::run` would otherwise do, so that `app.update()` can be called directly.
+pub fn finish_plugins(app: &mut App) {
+    while app.plugins_state() == bevy::app::PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    app.finish();
+    app.cleanup();
 }

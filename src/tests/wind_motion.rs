@@ -1,10 +1,10 @@
 //! Moving a tree's rings with springs.
 
-mod common;
+use crate::testing as common;
 
+use crate::tree::TreeModel;
+use crate::wind::*;
 use bevy::math::{Quat, Vec3, Vec3A};
-use bevy_sherwood::tree::TreeModel;
-use bevy_sherwood::wind::*;
 
 fn model() -> TreeModel {
     common::species("broad")
@@ -178,7 +178,7 @@ fn moved_bounds_follow_the_rings() {
         0.0,
         &mut offsets,
     );
-    let mut shape = bevy_sherwood::culling::CullShape::from(&m);
+    let mut shape = crate::culling::CullShape::from(&m);
     moved_bounds(&rig, &offsets, &mut shape);
     // Every vertex where the GPU puts it: trunk vertices with their ring, leaf vertices
     // with their group's ring.
@@ -269,7 +269,7 @@ fn a_tree_twice_as_large_responds_as_to_half_the_wind() {
 
 #[test]
 fn update_interval_halves_the_rate_as_the_motion_halves() {
-    use bevy_sherwood::wind::update_interval;
+    use crate::wind::update_interval;
     // Full rate from 8 px, at most every 8th frame.
     let at = |px: f32| update_interval(px, 8.0, 8);
     assert_eq!(at(100.0), 1);

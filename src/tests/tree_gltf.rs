@@ -2,12 +2,12 @@
 //! byte, imported and analysed.
 #![cfg(feature = "gltf")]
 
-mod common;
+use crate::testing as common;
 
 use std::collections::HashMap;
 
+use crate::tree::*;
 use bevy::math::Vec3;
-use bevy_sherwood::tree::*;
 
 /// `bytes` imported with the default settings and no external buffers.
 fn import(bytes: &[u8]) -> Result<TreeAnalysis, GltfTreeError> {
@@ -275,7 +275,7 @@ fn meta_files_set_the_keywords_and_the_analysis_options() {
     std::fs::create_dir_all(&dir).unwrap();
     let meta = |settings: &str| {
         format!(
-            "(meta_format_version: \"1.0\", asset: Load(loader: \"bevy_sherwood::tree::gltf::GltfTreeLoader\", settings: {settings}))"
+            "(meta_format_version: \"1.0\", asset: Load(loader: \"crate::tree::gltf::GltfTreeLoader\", settings: {settings}))"
         )
     };
     // "Greens" is no default leaf keyword: only the meta file makes the quad a leaf.
@@ -493,15 +493,15 @@ fn a_buffer_file_named_with_percent_escapes_loads_through_the_asset_server() {
 }
 
 proptest::proptest! {
-    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(common::fuzz::cases()))]
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(super::fuzz::cases()))]
 
     /// A damaged `.glb` (bytes changed, JSON numbers replaced by extreme values) is an
     /// error or a valid model, never a panic.
     #[test]
     fn mutated_glb_files_import_valid_or_fail(
-        m in proptest::collection::vec(common::fuzz::mutation(), 1..6)
+        m in proptest::collection::vec(super::fuzz::mutation(), 1..6)
     ) {
-        let bytes = common::fuzz::mutate(&glb(Vec3::ZERO, "leaf"), &m);
+        let bytes = super::fuzz::mutate(&glb(Vec3::ZERO, "leaf"), &m);
         if let Ok(analysis) = import(&bytes) {
             let valid = analysis.model.validate();
             proptest::prop_assert!(valid.is_ok(), "{:?}", valid.err());

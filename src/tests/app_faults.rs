@@ -2,11 +2,11 @@
 //! forest despawned, trees sent to NaN or to infinity, settings typed into an inspector —
 //! in a headless app: each is survived with the forest drawn and the model learning.
 
-mod common;
+use crate::testing as common;
 
+use crate::cost::{CostModel, CostSettings, FrameSamples, LearningRates};
+use crate::prelude::*;
 use bevy::prelude::*;
-use bevy_sherwood::cost::{CostModel, CostSettings, FrameSamples, LearningRates};
-use bevy_sherwood::prelude::*;
 
 /// A headless forest of `trees` trees, seen from its corner, its trees in view.
 fn forest_in_view(trees: u32) -> (App, Entity, f32) {
@@ -80,7 +80,7 @@ fn despawning_a_forest_despawns_its_trees() {
     assert_eq!(trees_in(&mut app), 0, "the forest's trees outlived it");
     let terrains = app
         .world_mut()
-        .query::<&bevy_sherwood::ecosystem::ForestTerrain>()
+        .query::<&crate::ecosystem::ForestTerrain>()
         .iter(app.world())
         .count();
     assert_eq!(terrains, 0, "the forest's terrain outlived it");
@@ -162,7 +162,7 @@ fn unusable_learning_rates_do_not_stop_the_learning() {
             let p = common::predicted_frame(&mut app);
             // A machine twice as slow as the calibration says.
             let render = 2.0 * p.render;
-            let sample = bevy_sherwood::cost::FrameSample {
+            let sample = crate::cost::FrameSample {
                 frame: p.frame,
                 logic: 0.005,
                 render,
@@ -222,8 +222,8 @@ fn importances_that_value_nothing_fall_back_to_the_defaults() {
 /// impostors built.
 #[test]
 fn a_model_that_never_loads_is_reported() {
+    use crate::culling::{ForestCulling, LOADING_WARNING_SECS};
     use bevy::time::TimeUpdateStrategy;
-    use bevy_sherwood::culling::{ForestCulling, LOADING_WARNING_SECS};
     let (mut app, _, size) = forest_in_view(60);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(
         std::time::Duration::from_millis(500),
@@ -251,7 +251,7 @@ fn a_model_that_never_loads_is_reported() {
     // Nor does it hold back the hierarchical strategy's group impostors.
     app.world_mut().resource_mut::<FrameBudget>().strategy = StrategyKind::Hierarchical;
     app.update();
-    let groups = app.world().resource::<bevy_sherwood::lod::GroupImpostors>();
+    let groups = app.world().resource::<crate::lod::GroupImpostors>();
     assert!(
         !groups.is_empty(),
         "no group impostor while a model is stuck loading"
@@ -286,7 +286,7 @@ fn one_app_through_every_fault_keeps_its_forest_drawn_and_its_frames_short() {
         let p = common::predicted_frame(app);
         let logic = p.logic_so_far + 0.003;
         let render = 0.008 + p.calibrated.total();
-        let sample = bevy_sherwood::cost::FrameSample {
+        let sample = crate::cost::FrameSample {
             frame: p.frame,
             logic,
             render,
@@ -343,15 +343,15 @@ fn one_app_through_every_fault_keeps_its_forest_drawn_and_its_frames_short() {
         let entity = app.world().entity(view);
         (
             *entity.get::<LodView>().unwrap(),
-            *entity.get::<bevy_sherwood::culling::CullView>().unwrap(),
+            *entity.get::<crate::culling::CullView>().unwrap(),
         )
     };
     app.world_mut()
         .entity_mut(view)
-        .remove::<(LodView, bevy_sherwood::culling::CullView)>();
+        .remove::<(LodView, crate::culling::CullView)>();
     for _ in 0..10 {
         let p = common::predicted_frame(&mut app);
-        let sample = bevy_sherwood::cost::FrameSample {
+        let sample = crate::cost::FrameSample {
             frame: p.frame,
             logic: 0.001,
             render: 1e-4,
@@ -368,7 +368,7 @@ fn one_app_through_every_fault_keeps_its_forest_drawn_and_its_frames_short() {
 
     // A stall: one 10 s frame.
     let p = common::predicted_frame(&mut app);
-    let stall = bevy_sherwood::cost::FrameSample {
+    let stall = crate::cost::FrameSample {
         frame: p.frame,
         logic: 10.0,
         render: p.render,
@@ -403,9 +403,9 @@ fn one_app_through_every_fault_keeps_its_forest_drawn_and_its_frames_short() {
 /// are rebuilt at most every `GROUP_REBUILD_SECS`, not every frame.
 #[test]
 fn planting_a_tree_a_frame_rebuilds_neither_the_culling_nor_the_wind_nor_the_groups() {
-    use bevy_sherwood::culling::ForestCulling;
-    use bevy_sherwood::lod::{GROUP_REBUILD_SECS, GroupImpostorOf, StrategyKind};
-    use bevy_sherwood::wind::RingOffsetTable;
+    use crate::culling::ForestCulling;
+    use crate::lod::{GROUP_REBUILD_SECS, GroupImpostorOf, StrategyKind};
+    use crate::wind::RingOffsetTable;
 
     let (mut app, _, size) = forest_in_view(400);
     app.world_mut().resource_mut::<FrameBudget>().strategy = StrategyKind::Hierarchical;

@@ -5,13 +5,18 @@
 //! saves what it rendered under `target/gpu-tests/` for a human to look at.
 #![cfg(feature = "gpu-tests")]
 
-mod common;
-#[path = "../examples/support/windowless.rs"]
-mod windowless;
+use crate::testing as common;
+use crate::testing as windowless;
 use common::species;
 
 use std::sync::{Arc, Mutex};
 
+use crate::draw::{LineRun, PointRun, TreeDrawList};
+use crate::ecosystem::{EcosystemPlugin, TerrainMaterial};
+use crate::instance::TreeInstance;
+use crate::render::ForestRenderPlugin;
+use crate::tree::{AnalysisOptions, MeshData, TreeModel, TreePlugin, analyze};
+use crate::{SherwoodCorePlugin, prelude::ForestRenderStats};
 use bevy::camera::{ClearColorConfig, RenderTarget};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::log::LogPlugin;
@@ -19,12 +24,6 @@ use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::render_resource::{CachedPipelineState, PipelineCache, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-use bevy_sherwood::draw::{LineRun, PointRun, TreeDrawList};
-use bevy_sherwood::ecosystem::{EcosystemPlugin, TerrainMaterial};
-use bevy_sherwood::instance::TreeInstance;
-use bevy_sherwood::render::ForestRenderPlugin;
-use bevy_sherwood::tree::{AnalysisOptions, MeshData, TreeModel, TreePlugin, analyze};
-use bevy_sherwood::{SherwoodCorePlugin, prelude::ForestRenderStats};
 
 const SIZE: u32 = 256;
 
@@ -106,9 +105,11 @@ fn render_views(
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     let mut app = App::new();
     app.add_plugins(
-        windowless::windowless_plugins()
-            // Several apps in one process: only the first could install a logger.
-            .disable::<LogPlugin>(),
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        )
+        // Several apps in one process: only the first could install a logger.
+        .disable::<LogPlugin>(),
     )
     .add_plugins((
         SherwoodCorePlugin,
@@ -707,7 +708,7 @@ fn every_camera_draws_the_forest_from_its_own_eye() {
 
 #[test]
 fn ring_offsets_move_the_rings_on_the_gpu() {
-    use bevy_sherwood::wind::RingOffsetTable;
+    use crate::wind::RingOffsetTable;
     let model = column();
     // Every ring but the root moves 0.5 m along +X: the column leans as one piece above
     // its first ring.
@@ -836,8 +837,8 @@ fn share_inside(part: &Picture, whole: &Picture) -> f64 {
 /// (its stems and enlarged leaves) and as lines and points.
 #[test]
 fn a_group_impostor_covers_where_its_trees_are() {
+    use crate::tree::{GroupImpostorMember, GroupImpostorOptions, group_impostor_model};
     use bevy::math::Affine3A;
-    use bevy_sherwood::tree::{GroupImpostorMember, GroupImpostorOptions, group_impostor_model};
     let model = species("slender");
     let far_first = model.far_first_leaves();
     let spacing = (model.bounds.max - model.bounds.min).xz().max_element() * 1.1;

@@ -1,14 +1,14 @@
 //! The time-critical LOD stages in a headless app: the default forest, culled and
 //! budgeted against a fixed view.
 
-mod common;
+use crate::testing as common;
 
+use crate::cost::{CostModel, CostSettings};
+use crate::culling::ForestCulling;
+use crate::draw::TreeDrawList;
+use crate::lod::StrategyKind;
+use crate::prelude::*;
 use bevy::prelude::*;
-use bevy_sherwood::cost::{CostModel, CostSettings};
-use bevy_sherwood::culling::ForestCulling;
-use bevy_sherwood::draw::TreeDrawList;
-use bevy_sherwood::lod::StrategyKind;
-use bevy_sherwood::prelude::*;
 
 const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
 const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);
@@ -269,8 +269,8 @@ fn the_diagnostics_plugin_publishes_the_frame() {
 
 #[test]
 fn the_budget_chooses_the_calibration_file_and_a_bad_one_falls_back() {
-    use bevy_sherwood::cost::Calibration;
-    use bevy_sherwood::cost::CalibrationChoice;
+    use crate::cost::Calibration;
+    use crate::cost::CalibrationChoice;
     let mut app = common::headless_app();
     let dir = std::env::temp_dir().join(format!("sherwood-lod-calibration-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -489,7 +489,7 @@ fn a_step_in_the_app_s_logic_is_in_the_same_frame_s_budget() {
 
 #[test]
 fn the_benefit_report_scores_every_strategy_below_its_bound_and_at_it_with_time_to_spare() {
-    use bevy_sherwood::lod::BenefitReport;
+    use crate::lod::BenefitReport;
     let mut app = app();
     let strategies = [
         StrategyKind::RobinHood,
@@ -544,8 +544,8 @@ fn the_benefit_report_scores_every_strategy_below_its_bound_and_at_it_with_time_
 /// size; no pixels, so a lower bound of what they cost) fit in the rendering time.
 #[test]
 fn the_draw_lists_written_are_priced_within_the_rendering_time() {
-    use bevy_sherwood::draw::ModelSlot;
-    use bevy_sherwood::tree::TreeModel;
+    use crate::draw::ModelSlot;
+    use crate::tree::TreeModel;
     let mut app = app();
     for mode in [LodMode::Tc, LodMode::Tclod] {
         for target in [40.0, 120.0, 400.0] {
@@ -553,7 +553,7 @@ fn the_draw_lists_written_are_priced_within_the_rendering_time() {
             let d = frame(&mut app, with(mode, target));
             let world = app.world_mut();
             let calibration = world.resource::<CostModel>().calibration().clone();
-            let sized = |costs: &[bevy_sherwood::cost::LinearCost], px: u32| {
+            let sized = |costs: &[crate::cost::LinearCost], px: u32| {
                 costs[(px.max(1) as usize - 1).min(costs.len() - 1)].per_primitive
             };
             let mut query = world.query::<(&TreeInstance, &TreeDrawList)>();

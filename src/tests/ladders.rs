@@ -2,14 +2,14 @@
 //! same Robin Hood hand-out as the trees.
 #![cfg(feature = "render")]
 
-mod common;
+use crate::testing as common;
 
+use crate::ladder::{LadderError, LadderState, generate_ladder};
+use crate::prelude::*;
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::MeshAabb;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bevy_sherwood::ladder::{LadderError, LadderState, generate_ladder};
-use bevy_sherwood::prelude::*;
 
 fn sphere() -> Mesh {
     Sphere::new(1.0).mesh().ico(5).unwrap()
@@ -158,7 +158,7 @@ fn hysteresis_holds_one_level_changes_either_way_and_lets_jumps_through() {
 
 #[test]
 fn the_budget_pays_for_the_level_the_hysteresis_holds() {
-    use bevy_sherwood::lod::select::LadderHold;
+    use crate::lod::select::LadderHold;
     let hold = LadderHold {
         shown: 2,
         better: true,
@@ -289,8 +289,8 @@ fn ladders_share_the_hand_out_with_the_trees() {
 
 #[test]
 fn the_budget_keeps_the_shown_level_while_it_fits_and_upgrades_with_a_margin() {
-    use bevy_sherwood::cost::{Calibration, MeshPathCost, PrimitiveCosts};
-    use bevy_sherwood::lod::select::ladder_level;
+    use crate::cost::{Calibration, MeshPathCost, PrimitiveCosts};
+    use crate::lod::select::ladder_level;
     let calibration = Calibration {
         meshes: MeshPathCost {
             per_draw: 0.0,
@@ -466,7 +466,7 @@ fn lod_named_siblings_wait_for_their_meshes() {
 
 #[test]
 fn the_hand_out_pays_for_the_levels_shown_while_the_hysteresis_holds() {
-    use bevy_sherwood::cost::{CostModel, PrimitiveCosts};
+    use crate::cost::{CostModel, PrimitiveCosts};
     let (mut app, spheres) = app(20);
     app.world_mut()
         .resource_mut::<LadderSettings>()

@@ -1,16 +1,16 @@
 //! The hierarchical strategy (Mason–Blake over the culling boxes, with group impostors)
 //! in a headless app: the default forest against a fixed view.
 
-mod common;
+use crate::testing as common;
 
-use bevy::prelude::*;
-use bevy_sherwood::budget::{HierarchicalLod, NodeSelection};
-use bevy_sherwood::culling::ForestCulling;
-use bevy_sherwood::draw::TreeDrawList;
-use bevy_sherwood::lod::{
+use crate::budget::{HierarchicalLod, NodeSelection};
+use crate::culling::ForestCulling;
+use crate::draw::TreeDrawList;
+use crate::lod::{
     GroupImpostorOf, GroupImpostorSettings, GroupImpostors, HierarchicalCut, StrategyKind,
 };
-use bevy_sherwood::prelude::*;
+use crate::prelude::*;
+use bevy::prelude::*;
 
 const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
 const LOOK_AT: Vec3 = Vec3::new(140.0, 4.0, 120.0);

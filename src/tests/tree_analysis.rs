@@ -1,8 +1,8 @@
 //! Tree analysis: the thesis' figures rebuilt by hand, meshes as real tools make them,
 //! malformed inputs, and the invariants of every shipped species.
 
+use crate::tree::*;
 use bevy::math::Vec3;
-use bevy_sherwood::tree::*;
 
 /// A ring of `k` vertices around the Y axis at height `y`, centred at `(x, z)`.
 fn ring(out: &mut Vec<Vec3>, center: Vec3, radius: f32, k: usize) -> u32 {

@@ -3,17 +3,17 @@
 //! frame's selection, and the real systems learn from what it "measured". No timing is
 //! asserted: every time is synthetic.
 
-mod common;
+use crate::testing as common;
 
 use std::collections::VecDeque;
 
-use bevy::prelude::*;
-use bevy_sherwood::cost::{
+use crate::cost::{
     Calibration, CalibrationChoice, CostModel, CostSettings, FramePrediction, FrameSample,
     FrameSamples,
 };
-use bevy_sherwood::culling::CullView;
-use bevy_sherwood::prelude::*;
+use crate::culling::CullView;
+use crate::prelude::*;
+use bevy::prelude::*;
 
 /// What the synthetic machine really costs.
 #[derive(Clone, Copy, Debug)]
@@ -528,7 +528,7 @@ fn a_still_view_learns_its_fixed_part_from_the_pass_time() {
 /// the driver) and handing over takes 4 ms, learned from the pipelined prior.
 #[test]
 fn the_overlap_of_the_two_worlds_is_learned_from_the_frames() {
-    use bevy_sherwood::cost::FrameOverlap;
+    use crate::cost::FrameOverlap;
     let (mut app, size) = app(Calibration::default());
     app.world_mut()
         .resource_mut::<CostModel>()
