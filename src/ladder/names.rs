@@ -28,14 +28,8 @@ use super::{LadderLevel, LodLadder};
 #[reflect(Component)]
 pub struct LadderFromLodNames;
 
-/// The base name and level of a node named `X_LOD<n>` (`_lod` in any case), or `None`.
-///
-/// ```
-/// use bevy_sherwood::ladder::lod_name_level;
-/// assert_eq!(lod_name_level("Rock_LOD2"), Some(("Rock", 2)));
-/// assert_eq!(lod_name_level("rock_lod0"), Some(("rock", 0)));
-/// assert_eq!(lod_name_level("Rock"), None);
-/// ```
+/// The base name and level of a node named `X_LOD<n>` (`_lod` in any case), or `None`:
+/// `Rock_LOD2` is `("Rock", 2)`, `rock_lod0` is `("rock", 0)`, `Rock` is none.
 pub(crate) fn lod_name_level(name: &str) -> Option<(&str, u32)> {
     const TAG: &str = "_lod";
     let digits = name.len() - name.bytes().rev().take_while(u8::is_ascii_digit).count();

@@ -275,7 +275,7 @@ fn meta_files_set_the_keywords_and_the_analysis_options() {
     std::fs::create_dir_all(&dir).unwrap();
     let meta = |settings: &str| {
         format!(
-            "(meta_format_version: \"1.0\", asset: Load(loader: \"crate::tree::gltf::GltfTreeLoader\", settings: {settings}))"
+            "(meta_format_version: \"1.0\", asset: Load(loader: \"bevy_sherwood::tree::gltf::GltfTreeLoader\", settings: {settings}))"
         )
     };
     // "Greens" is no default leaf keyword: only the meta file makes the quad a leaf.
