@@ -13,10 +13,10 @@ pub use desc::{EcosystemDesc, EcosystemError, InstanceDesc, MaterialDesc, Specie
 
 pub use placement::{Angles, Tilt};
 
+pub use plugin::ForestMembers;
 pub use plugin::{
     Ecosystem, EcosystemFileError, EcosystemPlugin, Forest, ForestState, ForestTerrain, InForest,
 };
-pub use plugin::{EcosystemLoader, ForestMembers};
 pub use terrain::Terrain;
 pub use terrain::{FaultsDesc, TerrainDesc, TerrainError};
 #[cfg(feature = "render")]

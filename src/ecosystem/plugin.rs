@@ -34,7 +34,7 @@ pub enum EcosystemFileError {
 
 /// Loads `*.ecosystem.ron` files.
 #[derive(Default, TypePath)]
-pub struct EcosystemLoader;
+pub(crate) struct EcosystemLoader;
 
 impl AssetLoader for EcosystemLoader {
     type Asset = Ecosystem;

@@ -26,7 +26,7 @@ pub fn species(name: &str) -> TreeModel {
 }
 
 /// A headless app with every Sherwood plugin, reading the crate's assets.
-pub fn headless_app() -> App {
+pub(crate) fn headless_app() -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -82,7 +82,7 @@ pub fn default_ecosystem() -> crate::ecosystem::EcosystemDesc {
 
 /// Numbers uniform in [0, 1), the same stream on every call (xorshift64 from a fixed
 /// seed): synthetic bench inputs that do not change between runs.
-pub fn unit_noise() -> impl FnMut() -> f32 {
+pub(crate) fn unit_noise() -> impl FnMut() -> f32 {
     let mut state = 0x9E37_79B9_7F4A_7C15_u64;
     move || {
         state ^= state << 13;
@@ -103,7 +103,8 @@ pub fn spawn_forest(app: &mut App, desc: crate::ecosystem::EcosystemDesc) -> Ent
 
 /// Plants one tree of the species file `species` (under `assets/species/`) at `at`, by
 /// hand: in no ecosystem.
-pub fn plant(app: &mut App, species: &str, at: Vec3) -> Entity {
+#[cfg(test)]
+pub(crate) fn plant(app: &mut App, species: &str, at: Vec3) -> Entity {
     let model = app
         .world()
         .resource::<AssetServer>()
@@ -127,8 +128,8 @@ pub fn replant(app: &mut App, planted: &mut Option<Entity>, model: &Handle<TreeM
 }
 
 /// A 320×180 camera rendering into an image from `eye` towards `target`, and a sun.
-#[cfg(feature = "render")]
-pub fn image_camera(app: &mut App, eye: Vec3, target: Vec3) {
+#[cfg(all(test, feature = "gpu-tests"))]
+pub(crate) fn image_camera(app: &mut App, eye: Vec3, target: Vec3) {
     use bevy::camera::RenderTarget;
     use bevy::render::render_resource::TextureFormat;
     let world = app.world_mut();
@@ -192,7 +193,8 @@ pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
 
 /// Runs one frame and returns the cost model's prediction of it (kept until the frame is
 /// measured).
-pub fn predicted_frame(app: &mut App) -> crate::cost::FramePrediction {
+#[cfg(test)]
+pub(crate) fn predicted_frame(app: &mut App) -> crate::cost::FramePrediction {
     app.update();
     let frame = app.world().resource::<LodDiagnostics>().frame;
     *app.world()
@@ -220,7 +222,8 @@ pub fn until_visible(app: &mut App) {
 /// The default forest (600 trees), still and with fixed costs, seen from `eye` towards
 /// `target` (1.4 rad wide, 16:9, 540 pixels high); `extra` spawns more before the first
 /// frame. Returns once the forest is culled and in view.
-pub fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)) -> App {
+#[cfg(test)]
+pub(crate) fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)) -> App {
     let mut app = headless_app();
     // Fixed costs: tests compare selections across frames, which learned costs would
     // otherwise change (nothing is measured in a headless app, but say so).

@@ -366,7 +366,7 @@ impl TreeModel {
 /// Loads `*.species.ron`: generates the species' meshes and analyses them into a
 /// [`TreeModel`].
 #[derive(Default, TypePath)]
-pub struct SpeciesLoader;
+pub(crate) struct SpeciesLoader;
 
 impl AssetLoader for SpeciesLoader {
     type Asset = TreeModel;
@@ -396,7 +396,7 @@ impl AssetLoader for SpeciesLoader {
 /// Loads analysed models saved with [`TreeModel::to_ron_string`] (`*.tree.ron`) or
 /// [`TreeModel::to_binary`] (`*.tree.bin`).
 #[derive(Default, TypePath)]
-pub struct TreeModelLoader;
+pub(crate) struct TreeModelLoader;
 
 impl AssetLoader for TreeModelLoader {
     type Asset = TreeModel;

@@ -649,7 +649,7 @@ fn read_primitive(
 
 /// Loads `*.tree.glb` and `*.tree.gltf` files as [`TreeModel`]s.
 #[derive(Default, TypePath)]
-pub struct GltfTreeLoader;
+pub(crate) struct GltfTreeLoader;
 
 impl AssetLoader for GltfTreeLoader {
     type Asset = TreeModel;

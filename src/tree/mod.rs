@@ -18,11 +18,11 @@ pub use analyze::{
 };
 pub(crate) use asset::TreeModelsVersion;
 
-pub use asset::{SpeciesLoader, TreeFileError, TreeModelLoader, TreePlugin};
+pub use asset::{TreeFileError, TreePlugin};
 #[cfg(feature = "gltf")]
-pub use gltf::{
-    BufferFile, GltfTreeError, GltfTreeLoader, GltfTreeSettings, external_buffers, import_gltf,
-};
+pub(crate) use gltf::GltfTreeLoader;
+#[cfg(feature = "gltf")]
+pub use gltf::{BufferFile, GltfTreeError, GltfTreeSettings, external_buffers, import_gltf};
 pub(crate) use group_impostor::{GroupImpostorMember, GroupImpostorOptions, group_impostor_model};
 pub use lod::PixelRange;
 pub(crate) use lod::Projection;

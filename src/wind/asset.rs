@@ -173,7 +173,7 @@ impl SpringSet {
 
 /// Loads `*.wind.ron` spring sets.
 #[derive(Default, TypePath)]
-pub struct SpringSetLoader;
+pub(crate) struct SpringSetLoader;
 
 impl AssetLoader for SpringSetLoader {
     type Asset = SpringSet;

@@ -8,7 +8,7 @@ mod plugin;
 mod spring;
 mod table;
 
-pub use asset::{SpringSet, SpringSetError, SpringSetLoader};
+pub use asset::{SpringSet, SpringSetError};
 pub use motion::AssociationRule;
 #[cfg(test)]
 pub(crate) use motion::update_interval;
