@@ -78,9 +78,10 @@ usage: forest [OPTIONS]
                          main world's)
   --no-wind              no wind
   --no-correction        predict with the calibration alone (no online learning)
-  --calibration FILE|default
-                         predict with this calibration file, or the built-in default
-                         costs (default: the one in assets/calibration/ for this adapter)
+  --calibration PATH|default
+                         predict with the calibration at this asset path (relative
+                         to the asset folder), or the built-in default costs
+                         (default: the one for this adapter in the calibration index)
   --scale-calibration F  multiply every cost and logic time of the calibration by F (to
                          see the online learning correct a calibration that is off)
   --calibrate            measure this machine's rendering and logic costs over the scene
@@ -357,7 +358,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
                 o.calibration = match it.next().map(String::as_str) {
                     Some("default") => CalibrationChoice::Keep,
                     Some(file) => CalibrationChoice::File(file.to_owned()),
-                    None => return Err("--calibration needs a file or `default`".into()),
+                    None => return Err("--calibration needs an asset path or `default`".into()),
                 };
             }
             "--scale-calibration" => {

@@ -120,7 +120,9 @@ pub(crate) fn logic_time(tables: &[LogicTable], visible: u32, target_ms: f32) ->
 }
 
 /// A saved calibration (`*.calibration.ron`): what this adapter's primitives and logic cost.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(
+    bevy::asset::Asset, bevy::reflect::TypePath, Clone, Debug, PartialEq, Serialize, Deserialize,
+)]
 #[serde(default, deny_unknown_fields)]
 pub struct Calibration {
     /// The adapter it was measured on (wgpu's adapter name).
@@ -232,6 +234,9 @@ pub enum CalibrationError {
     /// A value is out of range.
     #[error("{0}")]
     Invalid(String),
+    /// The file could not be read.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
 }
 
 impl Calibration {
@@ -427,59 +432,4 @@ pub(crate) fn calibration_file_name(adapter: &str) -> String {
         "{}.calibration.ron",
         if name.is_empty() { "adapter" } else { name }
     )
-}
-
-/// What [`find_calibration`] found in a directory.
-#[derive(Debug, Default)]
-pub(crate) struct CalibrationSearch {
-    /// The calibration for the adapter: one naming the same adapter and driver, else one
-    /// naming the same adapter.
-    pub found: Option<(std::path::PathBuf, Calibration)>,
-    /// Calibration files that could not be read or parsed, with the reason.
-    pub refused: Vec<(std::path::PathBuf, String)>,
-}
-
-/// Reads the calibration file at `path`.
-pub(crate) fn read_calibration(path: &std::path::Path) -> Result<Calibration, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
-    Calibration::from_ron_str(&text).map_err(|e| e.to_string())
-}
-
-/// Looks through the `*.calibration.ron` files of `dir` for one measured on `adapter`.
-/// A missing directory finds nothing; unreadable or malformed files are listed in
-/// [`CalibrationSearch::refused`] and skipped.
-pub(crate) fn find_calibration(
-    dir: &std::path::Path,
-    adapter: &AdapterIdentity,
-) -> CalibrationSearch {
-    let mut search = CalibrationSearch::default();
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return search;
-    };
-    let mut paths: Vec<std::path::PathBuf> = entries
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.ends_with(".calibration.ron"))
-        })
-        .collect();
-    paths.sort();
-    let mut same_adapter = None;
-    for path in paths {
-        match read_calibration(&path) {
-            Ok(c) if c.adapter == adapter.name && c.driver == adapter.driver => {
-                search.found = Some((path, c));
-                return search;
-            }
-            Ok(c) if c.adapter == adapter.name => {
-                same_adapter.get_or_insert((path, c));
-            }
-            Ok(_) => {}
-            Err(e) => search.refused.push((path, e)),
-        }
-    }
-    search.found = same_adapter;
-    search
 }

@@ -8,6 +8,7 @@
 //! a second, and how logic and rendering overlap in a frame.
 
 mod calibration;
+mod calibration_assets;
 mod fit;
 #[cfg(feature = "render")]
 mod gpu_frame;
@@ -22,7 +23,12 @@ pub(crate) use calibration::logic_time;
 pub use calibration::{AdapterIdentity, Calibration, CalibrationError};
 #[cfg(any(test, feature = "render"))]
 pub(crate) use calibration::{LogicTable, MeshPathCost, calibration_file_name};
-pub(crate) use calibration::{find_calibration, read_calibration};
+pub(crate) use calibration_assets::APP_INDEX;
+#[cfg(any(test, feature = "render"))]
+pub(crate) use calibration_assets::add_to_index;
+#[cfg(test)]
+pub(crate) use calibration_assets::choose_calibration;
+use calibration_assets::{CalibrationIndex, CalibrationLookup, LookupStep};
 pub(crate) use fit::LinearCost;
 #[cfg(any(test, feature = "render"))]
 pub(crate) use fit::{CostSample, fit_nonnegative_cost, fit_sized_costs};
@@ -80,26 +86,30 @@ impl Default for CostSettings {
     }
 }
 
-/// Where the cost model's [`Calibration`] comes from. Changing it reloads.
+/// Where the cost model's [`Calibration`] comes from. Changing it reloads. Calibrations
+/// are assets (`*.calibration.ron`), loaded by Bevy's asset server from any asset source;
+/// a file that does not load is reported with its path, line, column and field.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, Reflect)]
 pub enum CalibrationChoice {
-    /// The `*.calibration.ron` in the [`CalibrationDir`] (`assets/calibration/` by
-    /// default) that names the adapter the app renders with (and its driver, preferred);
-    /// with none, [`Calibration::default`] and one warning. Without the `render` feature
-    /// there is no adapter: the default.
+    /// The calibration measured on the adapter the app renders with (and its driver,
+    /// preferred), among those listed in the app's `calibration/index.calibrations.ron`
+    /// (a RON list of file names next to it; optional) and then those this crate ships,
+    /// embedded in it. With none, [`Calibration::default`] and one warning. Without the
+    /// `render` feature there is no adapter: the default.
     #[default]
     Adapter,
-    /// This file (a path as given, relative to the working directory); when it cannot be
-    /// read or parsed, an error is logged once and the default is used.
+    /// The calibration at this asset path (`calibration/mine.calibration.ron`, or with a
+    /// source: `embedded://…`); when it does not load, an error is logged once and the
+    /// default is used.
     File(String),
     /// Whatever [`CostModel::calibration`] holds: set by code, never loaded.
     Keep,
 }
 
-/// The directory [`CalibrationChoice::Adapter`] searches for calibrations, and where a
-/// calibration run writes by default: `calibration/` in the app's asset folder — Bevy's
-/// `AssetPlugin::file_path`, resolved as Bevy resolves it, so calibrations are found
-/// wherever the tree species are. [`CostPlugin`] inserts it unless one is already there.
+/// Where a calibration run writes by default, adding what it wrote to the index there
+/// (`index.calibrations.ron`, which [`CalibrationChoice::Adapter`] reads): `calibration/`
+/// in the app's asset folder — Bevy's `AssetPlugin::file_path`, resolved as Bevy resolves
+/// it. [`CostPlugin`] inserts it unless one is already there.
 #[derive(Resource, Clone, Debug, PartialEq, Eq)]
 pub struct CalibrationDir(pub std::path::PathBuf);
 
@@ -141,6 +151,9 @@ impl Plugin for CostPlugin {
                     CalibrationDir::in_asset_folder(&assets.file_path)
                 });
             app.insert_resource(dir);
+        }
+        if app.world().contains_resource::<AssetServer>() {
+            calibration_assets::register(app);
         }
         app.register_type::<CostSettings>()
             .init_resource::<CostSettings>()
@@ -220,58 +233,88 @@ fn learn_costs(
     }
 }
 
+/// The calibration lookup under way, and what it was started for.
+#[derive(Default)]
+struct CalibrationState {
+    started_for: Option<(CalibrationChoice, Option<AdapterIdentity>)>,
+    lookup: CalibrationLookup,
+}
+
 /// Installs the calibration [`CostSettings::calibration`] chooses, when the choice or the
-/// adapter changes; a new calibration restarts the learning.
+/// adapter changes (loading takes a few frames; the model predicts with what it had
+/// meanwhile); a new calibration restarts the learning.
 fn load_calibration(
     settings: Res<CostSettings>,
     adapter: Option<Res<AdapterIdentity>>,
-    dir: Res<CalibrationDir>,
+    assets: Option<(
+        Res<AssetServer>,
+        Res<Assets<Calibration>>,
+        Res<Assets<CalibrationIndex>>,
+    )>,
     mut model: ResMut<CostModel>,
-    mut loaded: Local<Option<(CalibrationChoice, Option<AdapterIdentity>)>>,
+    mut state: Local<CalibrationState>,
 ) {
     // Compared in place: this runs every frame, and cloning the key would allocate.
-    if loaded.as_ref().is_some_and(|(choice, seen)| {
+    let started = state.started_for.as_ref().is_some_and(|(choice, seen)| {
         *choice == settings.calibration && seen.as_ref() == adapter.as_deref()
-    }) {
-        return;
+    });
+    if !started {
+        state.started_for = Some((settings.calibration.clone(), adapter.as_deref().cloned()));
+        state.lookup = match (&settings.calibration, adapter.as_deref(), &assets) {
+            (CalibrationChoice::Keep, ..) | (CalibrationChoice::Adapter, None, _) => {
+                CalibrationLookup::Idle
+            }
+            (_, _, None) => {
+                warn!(
+                    "cost model: no AssetPlugin, so no calibration can load; using the default costs"
+                );
+                model.set_calibration(Calibration::default());
+                CalibrationLookup::Idle
+            }
+            (CalibrationChoice::File(path), _, Some((server, ..))) => {
+                CalibrationLookup::file(server, path)
+            }
+            (CalibrationChoice::Adapter, Some(_), Some((server, ..))) => {
+                CalibrationLookup::adapter(server)
+            }
+        };
     }
-    *loaded = Some((settings.calibration.clone(), adapter.as_deref().cloned()));
-    let chosen = match (&settings.calibration, adapter.as_deref()) {
-        (CalibrationChoice::Keep, _) | (CalibrationChoice::Adapter, None) => return,
-        (CalibrationChoice::File(path), _) => match read_calibration(std::path::Path::new(path)) {
-            Ok(c) => {
-                info!("cost model: calibration {path} ({})", c.adapter);
-                c
-            }
-            Err(e) => {
-                error!("cost model: calibration {path}: {e}; using the default costs");
-                Calibration::default()
-            }
-        },
-        (CalibrationChoice::Adapter, Some(adapter)) => {
-            let search = find_calibration(&dir.0, adapter);
-            for (path, e) in &search.refused {
-                error!("cost model: ignoring {}: {e}", path.display());
-            }
-            match search.found {
-                Some((path, c)) => {
-                    info!(
-                        "cost model: calibration {} for {}",
-                        path.display(),
-                        adapter.name
-                    );
-                    c
-                }
-                None => {
-                    warn!(
-                        "cost model: no calibration for adapter `{}` in {}; using the default \
-                         costs (measure one with `cargo run --release --example forest -- --calibrate`)",
-                        adapter.name,
-                        dir.0.display()
-                    );
-                    Calibration::default()
-                }
-            }
+    let (Some((server, calibrations, indexes)), false) =
+        (&assets, matches!(state.lookup, CalibrationLookup::Idle))
+    else {
+        return;
+    };
+    let unknown = AdapterIdentity::default();
+    let adapter = adapter.as_deref().unwrap_or(&unknown);
+    let LookupStep::Done(found) = state.lookup.step(server, calibrations, indexes, adapter) else {
+        return;
+    };
+    state.lookup = CalibrationLookup::Idle;
+    let chosen = match (&settings.calibration, found) {
+        (CalibrationChoice::File(path), Some(c)) => {
+            info!("cost model: calibration {path} ({})", c.adapter);
+            c
+        }
+        (CalibrationChoice::File(path), None) => {
+            error!(
+                "cost model: calibration {path} did not load (the asset error above says why); using the default costs"
+            );
+            Calibration::default()
+        }
+        (_, Some(c)) => {
+            info!(
+                "cost model: calibration for {} ({})",
+                adapter.name, c.driver
+            );
+            c
+        }
+        (_, None) => {
+            warn!(
+                "cost model: no calibration for adapter `{}` in {} or the shipped ones; using the \
+                 default costs (measure one with `cargo run --release --example forest -- --calibrate`)",
+                adapter.name, APP_INDEX,
+            );
+            Calibration::default()
         }
     };
     model.set_calibration(chosen);

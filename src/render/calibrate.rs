@@ -40,7 +40,7 @@ use bevy::prelude::*;
 
 use crate::cost::{
     AdapterIdentity, Calibration, CalibrationDir, CostModel, CostSample, CostSettings,
-    FrameSamples, LinearCost, LogicTable, MeshPathCost, calibration_file_name,
+    FrameSamples, LinearCost, LogicTable, MeshPathCost, add_to_index, calibration_file_name,
     fit_nonnegative_cost, fit_sized_costs,
 };
 use crate::culling::ForestCulling;
@@ -555,11 +555,15 @@ fn finish(
         &adapter,
     );
     let outcome = fitted.and_then(|calibration| {
+        let file_name = calibration_file_name(&adapter.name);
         let path = settings
             .out
             .clone()
-            .unwrap_or_else(|| calibration_dir.0.join(calibration_file_name(&adapter.name)));
+            .unwrap_or_else(|| calibration_dir.0.join(&file_name));
         write(&path, &calibration)?;
+        if settings.out.is_none() {
+            add_to_index(&calibration_dir.0, &file_name)?;
+        }
         print_report(&calibration, &state.render_samples);
         cost_model.set_calibration(calibration);
         Ok(path)

@@ -194,21 +194,22 @@ fn sized_fits_recover_each_size_and_interpolate_between() {
     assert!(fit_sized_costs(&[], 4).is_err());
 }
 
-#[test]
-fn calibrations_are_found_by_adapter_and_bad_files_are_reported() {
-    let dir = std::env::temp_dir().join(format!("sherwood-calibrations-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let adapter = AdapterIdentity {
+fn llvmpipe() -> AdapterIdentity {
+    AdapterIdentity {
         name: "llvmpipe (LLVM 15.0.6, 256 bits)".into(),
         driver: "llvmpipe Mesa 22.3.6".into(),
         cpu: true,
-    };
+    }
+}
+
+#[test]
+fn calibrations_are_chosen_by_adapter_then_driver() {
+    let adapter = llvmpipe();
     assert_eq!(
         calibration_file_name(&adapter.name),
         "llvmpipe-llvm-15-0-6-256-bits.calibration.ron"
     );
-    assert!(find_calibration(&dir, &adapter).found.is_none());
+    assert!(choose_calibration([], &adapter).is_none());
     let mut other_driver = Calibration {
         adapter: adapter.name.clone(),
         driver: "llvmpipe Mesa 21".into(),
@@ -224,26 +225,142 @@ fn calibrations_are_found_by_adapter_and_bad_files_are_reported() {
         adapter: "NVIDIA GeForce".into(),
         ..Default::default()
     };
-    let write = |name: &str, c: &Calibration| {
-        std::fs::write(dir.join(name), c.to_ron_string().unwrap()).unwrap();
-    };
-    write("a-old.calibration.ron", &other_driver);
-    write("nvidia.calibration.ron", &foreign);
     // Same adapter, other driver: used when nothing better exists.
-    let found = find_calibration(&dir, &adapter).found.unwrap();
-    assert_eq!(found.1, other_driver);
-    write("z-new.calibration.ron", &exact);
-    std::fs::write(dir.join("broken.calibration.ron"), "(adapter: 3)").unwrap();
-    std::fs::write(dir.join("notes.txt"), "not a calibration").unwrap();
-    let search = find_calibration(&dir, &adapter);
-    assert_eq!(search.found.unwrap().1, exact);
-    assert_eq!(search.refused.len(), 1);
-    assert!(search.refused[0].0.ends_with("broken.calibration.ron"));
-    assert!(
-        find_calibration(&dir.join("missing"), &adapter)
-            .found
-            .is_none()
+    assert_eq!(
+        choose_calibration([&other_driver, &foreign], &adapter),
+        Some(&other_driver)
     );
+    assert_eq!(
+        choose_calibration([&other_driver, &foreign, &exact], &adapter),
+        Some(&exact)
+    );
+    assert!(choose_calibration([&foreign], &adapter).is_none());
+}
+
+/// An app reading calibrations from the asset folder `dir` (with no window, no renderer:
+/// the adapter is inserted by hand).
+fn calibration_app(dir: &std::path::Path, adapter: AdapterIdentity) -> bevy::prelude::App {
+    use bevy::prelude::*;
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            ..Default::default()
+        },
+        CostPlugin,
+    ))
+    .insert_resource(adapter);
+    app
+}
+
+/// Updates until the calibration changes from `before` (bounded), and returns it.
+fn loaded_calibration(app: &mut bevy::prelude::App, before: &Calibration) -> Calibration {
+    for _ in 0..2000 {
+        app.update();
+        let now = app.world().resource::<CostModel>().calibration();
+        if now != before {
+            return now.clone();
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    before.clone()
+}
+
+#[test]
+fn the_adapter_s_calibration_loads_from_the_app_s_index_and_bad_files_are_skipped() {
+    let dir = std::env::temp_dir().join(format!("sherwood-calibrations-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("calibration")).unwrap();
+    let adapter = llvmpipe();
+    let mut exact = Calibration {
+        adapter: adapter.name.clone(),
+        driver: adapter.driver.clone(),
+        ..Default::default()
+    };
+    exact.points[0].per_primitive = 3e-7;
+    let foreign = Calibration {
+        adapter: "NVIDIA GeForce".into(),
+        ..Default::default()
+    };
+    let write = |name: &str, text: String| {
+        std::fs::write(dir.join("calibration").join(name), text).unwrap();
+    };
+    write("nvidia.calibration.ron", foreign.to_ron_string().unwrap());
+    write("broken.calibration.ron", "(adapter: 3)".into());
+    write("mine.calibration.ron", exact.to_ron_string().unwrap());
+    write(
+        "index.calibrations.ron",
+        r#"["nvidia.calibration.ron", "broken.calibration.ron", "mine.calibration.ron"]"#.into(),
+    );
+    let mut app = calibration_app(&dir, adapter.clone());
+    // The app's own calibration comes before the shipped one for the same adapter.
+    assert_eq!(loaded_calibration(&mut app, &Calibration::default()), exact);
+    // The broken file was skipped; loaded on its own, it fails with its place named.
+    let broken: bevy::asset::Handle<Calibration> = app
+        .world()
+        .resource::<bevy::asset::AssetServer>()
+        .load("calibration/broken.calibration.ron");
+    let state = loop {
+        app.update();
+        let state = app
+            .world()
+            .resource::<bevy::asset::AssetServer>()
+            .load_state(broken.id());
+        if !state.is_loading() {
+            break state;
+        }
+    };
+    match state {
+        bevy::asset::LoadState::Failed(e) => {
+            let e = e.to_string();
+            assert!(
+                e.contains("broken.calibration.ron") && e.contains("1:"),
+                "{e}"
+            );
+        }
+        other => panic!("the broken calibration should have failed: {other:?}"),
+    }
+    // Without an index of its own, the app finds the calibration this crate ships.
+    std::fs::remove_file(
+        dir.join("calibration")
+            .join(APP_INDEX.trim_start_matches("calibration/")),
+    )
+    .unwrap();
+    let mut app = calibration_app(&dir, adapter);
+    let shipped = loaded_calibration(&mut app, &Calibration::default());
+    assert_eq!(shipped.adapter, "llvmpipe (LLVM 15.0.6, 256 bits)");
+    assert_ne!(shipped, exact);
+    // An adapter nobody measured: the default costs.
+    let unknown = AdapterIdentity {
+        name: "unknown".into(),
+        ..Default::default()
+    };
+    let mut app = calibration_app(&dir, unknown);
+    for _ in 0..200 {
+        app.update();
+    }
+    assert_eq!(
+        *app.world().resource::<CostModel>().calibration(),
+        Calibration::default()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_calibration_run_adds_its_file_to_the_index() {
+    let dir =
+        std::env::temp_dir().join(format!("sherwood-calibration-index-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    add_to_index(&dir, "a.calibration.ron").unwrap();
+    add_to_index(&dir, "b.calibration.ron").unwrap();
+    add_to_index(&dir, "a.calibration.ron").unwrap();
+    let text = std::fs::read_to_string(dir.join("index.calibrations.ron")).unwrap();
+    let index: Vec<String> = ron::from_str(&text).unwrap();
+    assert_eq!(index, ["a.calibration.ron", "b.calibration.ron"]);
+    std::fs::write(dir.join("index.calibrations.ron"), "[3]").unwrap();
+    assert!(add_to_index(&dir, "c.calibration.ron").is_err());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -271,39 +271,64 @@ fn the_diagnostics_plugin_publishes_the_frame() {
 fn the_budget_chooses_the_calibration_file_and_a_bad_one_falls_back() {
     use crate::cost::Calibration;
     use crate::cost::CalibrationChoice;
-    let mut app = common::headless_app();
     let dir = std::env::temp_dir().join(format!("sherwood-lod-calibration-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            ..Default::default()
+        },
+        CostPlugin,
+    ));
     let mut measured = Calibration {
         adapter: "test adapter".into(),
         ..Default::default()
     };
     measured.triangles.per_primitive = 7e-6;
-    let good = dir.join("good.calibration.ron");
-    std::fs::write(&good, measured.to_ron_string().unwrap()).unwrap();
-    let bad = dir.join("bad.calibration.ron");
-    std::fs::write(&bad, "(triangles: (fixed: -1))").unwrap();
-    let choose = |app: &mut App, choice: CalibrationChoice| {
+    std::fs::write(
+        dir.join("good.calibration.ron"),
+        measured.to_ron_string().unwrap(),
+    )
+    .unwrap();
+    std::fs::write(dir.join("bad.calibration.ron"), "(triangles: (fixed: -1))").unwrap();
+    // Loading takes a few frames: until the model's calibration is `until` (bounded).
+    let choose = |app: &mut App, choice: CalibrationChoice, until: &Calibration| {
         app.world_mut().resource_mut::<CostSettings>().calibration = choice;
-        app.update();
+        for _ in 0..2000 {
+            app.update();
+            if app.world().resource::<CostModel>().calibration() == until {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
         app.world().resource::<CostModel>().calibration().clone()
     };
     assert_eq!(
         choose(
             &mut app,
-            CalibrationChoice::File(good.display().to_string())
+            CalibrationChoice::File("good.calibration.ron".into()),
+            &measured
         ),
         measured
     );
     assert_eq!(
-        choose(&mut app, CalibrationChoice::File(bad.display().to_string())),
+        choose(
+            &mut app,
+            CalibrationChoice::File("bad.calibration.ron".into()),
+            &Calibration::default()
+        ),
         Calibration::default()
     );
     // Keep: what code put there stays.
     app.world_mut()
         .resource_mut::<CostModel>()
         .set_calibration(measured.clone());
-    assert_eq!(choose(&mut app, CalibrationChoice::Keep), measured);
+    assert_eq!(
+        choose(&mut app, CalibrationChoice::Keep, &measured),
+        measured
+    );
     app.update();
     assert_eq!(*app.world().resource::<CostModel>().calibration(), measured);
     std::fs::remove_dir_all(&dir).unwrap();
