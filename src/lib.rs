@@ -35,7 +35,9 @@ use bevy::app::{PluginGroup, PluginGroupBuilder};
 /// What an app author uses: `use bevy_sherwood::prelude::*;`. Settings and reports
 /// beyond these are in their stages' modules ([`cost`], [`wind`], …).
 pub mod prelude {
-    pub use crate::cost::{CalibrationChoice, CostModel, CostPlugin, CostSettings};
+    pub use crate::cost::{
+        CalibrationChoice, CalibrationNotFound, CostModel, CostPlugin, CostSettings,
+    };
     pub use crate::culling::{CullingDebug, CullingPlugin};
     #[cfg(feature = "render")]
     pub use crate::display::EmulatedVsyncPlugin;
@@ -45,13 +47,13 @@ pub mod prelude {
     pub use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
     #[cfg(feature = "render")]
     pub use crate::ladder::{
-        LadderDiagnostics, LadderFromLodNames, LadderImportance, LadderPlugin, LadderSettings,
-        LodLadder, generate_ladder,
+        LadderDiagnostics, LadderFromLodNames, LadderImportance, LadderLevelChanged, LadderPlugin,
+        LadderSettings, LodLadder, generate_ladder,
     };
     pub use crate::lod::ValueFunction;
     pub use crate::lod::{
         FrameBudget, FrameGoal, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin,
-        StrategyKind,
+        StrategyKind, TargetUnreachable, Unreachable,
     };
     #[cfg(feature = "render")]
     pub use crate::render::{ForestHud, ForestHudPlugin, ForestRenderPlugin, ForestRenderStats};

@@ -233,6 +233,17 @@ fn learn_costs(
     }
 }
 
+/// No calibration was measured on the adapter the app renders with (none in the app's
+/// index nor among the shipped ones): the cost model starts from
+/// [`Calibration::default`] and learns this machine's costs as it runs (a warning is
+/// logged as well). Raised once per adapter and choice; observe it with
+/// `app.add_observer(|missing: On<CalibrationNotFound>| …)`.
+#[derive(Event, Clone, Debug, PartialEq, Eq)]
+pub struct CalibrationNotFound {
+    /// The adapter nobody measured.
+    pub adapter: AdapterIdentity,
+}
+
 /// The calibration lookup under way, and what it was started for.
 #[derive(Default)]
 struct CalibrationState {
@@ -253,6 +264,7 @@ fn load_calibration(
     )>,
     mut model: ResMut<CostModel>,
     mut state: Local<CalibrationState>,
+    mut commands: Commands,
 ) {
     // Compared in place: this runs every frame, and cloning the key would allocate.
     let started = state.started_for.as_ref().is_some_and(|(choice, seen)| {
@@ -314,6 +326,9 @@ fn load_calibration(
                  default costs (measure one with `cargo run --release --example forest -- --calibrate`)",
                 adapter.name, APP_INDEX,
             );
+            commands.trigger(CalibrationNotFound {
+                adapter: adapter.clone(),
+            });
             Calibration::default()
         }
     };

@@ -275,6 +275,19 @@ fn gather_ladders(
     }
 }
 
+/// A mesh entity's [`LodLadder`] now shows another level (after the hysteresis; once per
+/// change, not once a frame). Observe it on the entity or globally:
+/// `app.add_observer(|change: On<LadderLevelChanged>| …)`.
+#[derive(EntityEvent, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
+pub struct LadderLevelChanged {
+    /// The entity with the ladder.
+    pub entity: Entity,
+    /// The level shown before (0 = best).
+    pub from: u32,
+    /// The level shown now.
+    pub to: u32,
+}
+
 /// Shows the level the budget chose, through the hysteresis, by swapping `Mesh3d`.
 fn show_ladder_levels(
     objects: Res<LadderObjects>,
@@ -295,8 +308,16 @@ fn show_ladder_levels(
             continue;
         };
         let last = ladder.levels().len().saturating_sub(1) as u32;
+        let from = state.shown;
         let switched = state.settle(wanted.min(last), settings.hysteresis_frames);
         diagnostics.switches += u32::from(switched);
+        if switched {
+            commands.trigger(LadderLevelChanged {
+                entity: entry.entity,
+                from,
+                to: state.shown,
+            });
+        }
         let shown = state.shown.min(last) as usize;
         if diagnostics.shown_per_level.len() <= shown {
             diagnostics.shown_per_level.resize(shown + 1, 0);

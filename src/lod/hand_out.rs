@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 
+use super::alerts::{self, TargetWatch};
 use super::draw_lists::ChosenLists;
 use super::group_impostors::GroupImpostors;
 use super::search::{self, Choices, ObjectSearch};
@@ -15,7 +16,7 @@ use super::strategy::{self, HandOut, Outcome, Scene, Strategies};
 use super::value::{FarDecisions, VisibleObjects};
 use super::{
     AppMeshLoad, BenefitReport, FrameBudget, HierarchicalCut, LadderEntry, LadderObjects,
-    LodDiagnostics, StrategyKind, TARGET_WARNING_SECS,
+    LodDiagnostics, StrategyKind,
 };
 use crate::budget::{Allocation, oracle};
 use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction, MeasuredPacing};
@@ -50,8 +51,7 @@ pub(super) struct BudgetState {
     tree_parts: Vec<Selected>,
     /// Since when (real seconds since start-up) the target has been at or below the
     /// logic time, and whether that was reported.
-    target_below_logic_since: Option<f32>,
-    warned_target: bool,
+    target: TargetWatch,
 }
 
 /// The frame's time as the budget sees it, seconds.
@@ -119,26 +119,6 @@ fn frame_times(
     }
 }
 
-impl BudgetState {
-    /// Warns once the target has stayed at or below the logic time for
-    /// [`TARGET_WARNING_SECS`].
-    fn watch_target(&mut self, below_logic: bool, now: f32, target_ms: f32, logic: f32) {
-        if !below_logic {
-            self.target_below_logic_since = None;
-            self.warned_target = false;
-            return;
-        }
-        let since = *self.target_below_logic_since.get_or_insert(now);
-        if !self.warned_target && now - since >= TARGET_WARNING_SECS {
-            warn!(
-                "FrameBudget: target {target_ms:.1} ms has been at or below the logic time ({:.1} ms now) for {TARGET_WARNING_SECS} s; every object is drawn at its cheapest",
-                logic * 1000.0
-            );
-            self.warned_target = true;
-        }
-    }
-}
-
 pub(super) fn hand_out_time(
     visible: Res<VisibleObjects>,
     mut far: ResMut<FarDecisions>,
@@ -154,6 +134,7 @@ pub(super) fn hand_out_time(
     report: Res<BenefitReport>,
     mut boxes: Boxes,
     pacing: Pacing,
+    mut commands: Commands,
 ) {
     let start = Instant::now();
     let state = &mut *state;
@@ -169,8 +150,6 @@ pub(super) fn hand_out_time(
         ladders.app_meshes,
         &pacing,
     );
-    let now = time.elapsed_secs();
-    state.watch_target(times.target_below_logic, now, budget.target_ms, times.logic);
 
     chosen.clear_for(visible.trees.len());
     let LadderObjects {
@@ -236,6 +215,9 @@ pub(super) fn hand_out_time(
             &priced,
         )
     };
+    if let Some(alert) = state.target.observe(&diagnostics, time.elapsed_secs()) {
+        alerts::raise(&mut commands, alert);
+    }
 }
 
 /// Every visible object's search, by the mode's methods.

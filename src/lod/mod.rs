@@ -39,6 +39,7 @@
 //! it ([`CostModel::record`](crate::cost::CostModel::record)) so that it learns from what that frame then measured.
 
 mod aim;
+mod alerts;
 mod diagnostics;
 mod draw_lists;
 mod group_impostors;
@@ -50,6 +51,7 @@ mod strategy;
 mod value;
 
 pub use crate::budget::ValueFunction;
+pub use alerts::{TargetUnreachable, Unreachable};
 pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
 pub use group_impostors::GroupImpostors;
 #[cfg(test)]

@@ -103,8 +103,9 @@ pub struct FrameBudget {
     /// Target frame time in milliseconds; 100 because this crate's reference machine
     /// renders in software. Default: `100.0`. A target at or below the logic time leaves no rendering time:
     /// everything is drawn at its cheapest ([`LodDiagnostics::target_below_logic`](super::LodDiagnostics::target_below_logic)), and a
-    /// warning is logged once it has lasted `TARGET_WARNING_SECS` (not for the slow
-    /// frames of start-up, while shaders compile and the measured logic time settles).
+    /// warning is logged and [`TargetUnreachable`](super::TargetUnreachable) raised once
+    /// it has lasted `TARGET_WARNING_SECS` (not for the slow frames of start-up, while
+    /// shaders compile and the measured logic time settles).
     pub target_ms: f32,
     /// What the target promises. Default: [`FrameGoal::Tail`], at most 5% of frames over
     /// 1.1 × target; [`FrameGoal::Mean`] is the paper's (its tables use it).

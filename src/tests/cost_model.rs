@@ -336,13 +336,27 @@ fn the_adapter_s_calibration_loads_from_the_app_s_index_and_bad_files_are_skippe
         name: "unknown".into(),
         ..Default::default()
     };
-    let mut app = calibration_app(&dir, unknown);
+    let mut app = calibration_app(&dir, unknown.clone());
+    #[derive(bevy::prelude::Resource, Default)]
+    struct Missing(Vec<AdapterIdentity>);
+    app.init_resource::<Missing>().add_observer(
+        |missing: bevy::prelude::On<CalibrationNotFound>,
+         mut seen: bevy::prelude::ResMut<Missing>| {
+            seen.0.push(missing.adapter.clone());
+        },
+    );
     for _ in 0..200 {
         app.update();
+        std::thread::sleep(std::time::Duration::from_millis(1));
     }
     assert_eq!(
         *app.world().resource::<CostModel>().calibration(),
         Calibration::default()
+    );
+    assert_eq!(
+        app.world().resource::<Missing>().0,
+        [unknown],
+        "announced once"
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

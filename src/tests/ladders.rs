@@ -472,6 +472,15 @@ fn the_hand_out_pays_for_the_levels_shown_while_the_hysteresis_holds() {
         .resource_mut::<LadderSettings>()
         .hysteresis_frames = 4;
     let (mut held, mut switched) = (0, 0);
+    // Each change of a shown level is announced once, as it happens.
+    #[derive(Resource, Default)]
+    struct Announced(Vec<(Entity, u32, u32)>);
+    app.init_resource::<Announced>().add_observer(
+        |change: On<LadderLevelChanged>, mut seen: ResMut<Announced>| {
+            seen.0.push((change.entity, change.from, change.to));
+        },
+    );
+    let mut before = shown(&app, &spheres);
     // Generous, then tighter and tighter for a while each, a one-frame dip, generous again.
     let targets = [
         (100_000.0, 2),
@@ -488,6 +497,17 @@ fn the_hand_out_pays_for_the_levels_shown_while_the_hysteresis_holds() {
     {
         let d = frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, target);
         let now = shown(&app, &spheres);
+        let mut changed: Vec<(Entity, u32, u32)> = spheres
+            .iter()
+            .zip(before.iter().zip(&now))
+            .filter(|(_, (a, b))| a != b)
+            .map(|(&e, (&a, &b))| (e, a, b))
+            .collect();
+        let mut announced = std::mem::take(&mut app.world_mut().resource_mut::<Announced>().0);
+        changed.sort();
+        announced.sort();
+        assert_eq!(announced, changed, "at {target} ms");
+        before = now.clone();
         let ladders = app.world().resource::<LadderDiagnostics>().clone();
         assert_eq!(
             ladders.shown_per_level.iter().sum::<u32>(),

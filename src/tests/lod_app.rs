@@ -176,6 +176,41 @@ fn a_target_below_the_logic_time_is_clamped_not_negative() {
     assert!(!frame(&mut app, with(LodMode::Unlimited, -5.0)).target_below_logic);
 }
 
+/// A target that stays unreachable is announced once, after a few seconds, to the app's
+/// observers; a reachable one in between announces the next failure again.
+#[test]
+fn an_unreachable_target_is_announced_once() {
+    use crate::lod::{TargetUnreachable, Unreachable};
+    #[derive(Resource, Default)]
+    struct Alerts(Vec<Unreachable>);
+    let mut app = app();
+    app.init_resource::<Alerts>().add_observer(
+        |alert: On<TargetUnreachable>, mut alerts: ResMut<Alerts>| {
+            alerts.0.push(alert.cause);
+        },
+    );
+    let until = |app: &mut App, budget: FrameBudget, seconds: f32| {
+        let start = std::time::Instant::now();
+        while start.elapsed().as_secs_f32() < seconds {
+            frame(app, budget.clone());
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+    };
+    until(&mut app, with(LodMode::Tclod, -5.0), 1.0);
+    assert!(app.world().resource::<Alerts>().0.is_empty(), "not at once");
+    until(&mut app, with(LodMode::Tclod, -5.0), 3.0);
+    assert_eq!(
+        app.world().resource::<Alerts>().0,
+        [Unreachable::BelowLogic]
+    );
+    until(&mut app, with(LodMode::Tclod, 10_000.0), 0.2);
+    until(&mut app, with(LodMode::Tclod, -5.0), 3.5);
+    assert_eq!(
+        app.world().resource::<Alerts>().0,
+        [Unreachable::BelowLogic, Unreachable::BelowLogic]
+    );
+}
+
 #[test]
 fn ladder_strategies_may_drop_objects_and_say_so() {
     let mut app = app();
