@@ -56,7 +56,9 @@ pub mod prelude {
         StrategyKind, TargetUnreachable, Unreachable,
     };
     #[cfg(feature = "render")]
-    pub use crate::render::{ForestHud, ForestHudPlugin, ForestRenderPlugin, ForestRenderStats};
+    #[cfg(feature = "hud")]
+    pub use crate::render::{ForestHud, ForestHudPlugin};
+    pub use crate::render::{ForestRenderPlugin, ForestRenderStats};
     pub use crate::tree::{TreeModel, TreePlugin};
     pub use crate::view::{BudgetView, LodView};
     pub use crate::wind::{WindPlugin, WindSettings};

@@ -878,10 +878,10 @@ fn print_report(calibration: &Calibration, render: &[(Family, u32, CostSample)])
 
 /// Terminal progress bar and an on-screen line.
 fn show_progress(
-    mut commands: Commands,
     progress: Res<CalibrationProgress>,
-    mut text: Query<&mut Text, With<ProgressText>>,
     mut last: Local<Option<(u32, String)>>,
+    #[cfg(feature = "hud")] mut commands: Commands,
+    #[cfg(feature = "hud")] mut text: Query<&mut Text, With<ProgressText>>,
 ) {
     if progress.total == 0 {
         return;
@@ -907,6 +907,7 @@ fn show_progress(
         let _ = writeln!(stderr);
     }
     let _ = stderr.flush();
+    #[cfg(feature = "hud")]
     match text.single_mut() {
         Ok(mut text) => text.0 = line,
         Err(_) => {
@@ -929,6 +930,7 @@ fn show_progress(
 }
 
 /// The on-screen progress line.
+#[cfg(feature = "hud")]
 #[derive(Component)]
 struct ProgressText;
 

@@ -21,6 +21,7 @@
 
 mod batch;
 mod calibrate;
+#[cfg(feature = "hud")]
 mod hud;
 
 use std::sync::{Arc, Mutex};
@@ -55,6 +56,7 @@ use bytemuck::{Pod, Zeroable};
 pub use calibrate::{
     CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
 };
+#[cfg(feature = "hud")]
 pub use hud::{ForestHud, ForestHudPlugin};
 
 use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList, TreeShading};
