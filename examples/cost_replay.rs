@@ -18,10 +18,7 @@ use std::path::Path;
 use bevy_sherwood::cost::{
     Calibration, CostModel, FamilyTimes, FrameOverlap, FramePrediction, FrameSample, LearningRates,
 };
-use record::Record;
-
-#[path = "support/record.rs"]
-mod record;
+use sherwood_lab::record::Record;
 
 const USAGE: &str = "usage: cost_replay RECORD.csv [--calibration FILE] [--scale F] \
 [--speed-seconds S] [--costs-seconds S] [--twin UNLIMITED.csv]";

@@ -18,13 +18,8 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use frame_stats::FrameStats;
-use record::Record;
-
-#[path = "support/frame_stats.rs"]
-mod frame_stats;
-#[path = "support/record.rs"]
-mod record;
+use sherwood_lab::frame_stats::FrameStats;
+use sherwood_lab::record::{self, Record};
 
 /// Frames a learning run is given before its prediction error counts.
 const LEARNING_FRAMES: usize = 60;

@@ -12,11 +12,6 @@
 //! `+`/`-` raise/lower the target frame time; `M` cycle the mode; `B` cycle the budget
 //! strategy; `N` toggle wind; `C` toggle the culling boxes; `H` toggle the HUD.
 
-#[path = "support/frame_stats.rs"]
-mod frame_stats;
-#[path = "support/quality.rs"]
-mod quality;
-
 use std::io::Write;
 use std::time::Duration;
 
@@ -43,7 +38,8 @@ use bevy_sherwood::render::{
     CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
 };
 use bevy_sherwood::wind::WindSettings;
-use frame_stats::FrameStats;
+use sherwood_lab::frame_stats::FrameStats;
+use sherwood_lab::quality;
 
 const USAGE: &str = "\
 usage: forest [OPTIONS]

@@ -15,10 +15,8 @@
 //! lavapipe the "GPU" is the CPU, so the two are one cost). Each figure is the median of
 //! the measured frames, after every pipeline has compiled.
 
+use bevy_sherwood::testing as windowless;
 use std::time::Instant;
-
-#[path = "support/windowless.rs"]
-mod windowless;
 
 use bevy::camera::{ClearColorConfig, RenderTarget};
 use bevy::prelude::*;
@@ -50,13 +48,15 @@ struct Bench {
 impl Bench {
     fn new() -> Self {
         let mut app = App::new();
-        app.add_plugins(windowless::windowless_plugins())
-            .add_plugins((
-                SherwoodCorePlugin,
-                TreePlugin,
-                ForestRenderPlugin,
-                RenderDiagnosticsPlugin,
-            ));
+        app.add_plugins(windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        ))
+        .add_plugins((
+            SherwoodCorePlugin,
+            TreePlugin,
+            ForestRenderPlugin,
+            RenderDiagnosticsPlugin,
+        ));
         windowless::finish_plugins(&mut app);
         let world = app.world_mut();
         let mut image =

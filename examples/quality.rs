@@ -18,9 +18,7 @@
 //! FULL.png LOD.png` writes where the two pictures differ, as the SSIM of each 8×8 window
 //! in false colour (blue: identical, red: unrelated).
 
-#[path = "support/quality.rs"]
-mod quality;
-
+use sherwood_lab::quality;
 use std::collections::HashMap;
 use std::process::ExitCode;
 

@@ -18,24 +18,13 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use frame_stats::FrameStats;
 use plotters::prelude::*;
-use record::Record;
-
-#[path = "support/frame_stats.rs"]
-mod frame_stats;
-#[path = "support/large_forest.rs"]
-mod large_forest;
-#[path = "support/record.rs"]
-mod record;
+use sherwood_lab::frame_stats::{FrameStats, NOISE_WINDOW, variation};
+use sherwood_lab::record::{self, Record};
 
 /// A frame counts as *binding* when its unlimited twin (the same frame of the path at full
 /// detail) took more than this many times the target: no budget could be idle there.
 const BINDING: f64 = 1.2;
-
-/// Frames per window of the within-regime noise (the machine's speed changes every
-/// 5–10 s; a window of 25 frames stays inside one regime at these frame rates).
-const NOISE_WINDOW: usize = 25;
 
 /// One recorded frame.
 #[derive(Clone, Debug)]
@@ -258,25 +247,6 @@ fn noise_floor(hold: &Run) -> Floor {
     }
 }
 
-/// How much frame times vary, percent: the coefficient of variation over all of `times`,
-/// and its median within windows of [`NOISE_WINDOW`] frames.
-fn variation(times: &[f64]) -> (f64, f64) {
-    let cv = |v: &[f64]| {
-        let s = FrameStats::of(v, 1.0);
-        if s.mean > 0.0 {
-            100.0 * s.std / s.mean
-        } else {
-            0.0
-        }
-    };
-    let mut windows: Vec<f64> = times.chunks_exact(NOISE_WINDOW).map(cv).collect();
-    windows.sort_by(f64::total_cmp);
-    (
-        cv(times),
-        windows.get(windows.len() / 2).copied().unwrap_or(0.0),
-    )
-}
-
 /// The paper's own numbers (ALGORITHMS.md: paper table 2 = thesis 6.2/6.3, TC without LOD,
 /// 600 trees; thesis table 6.6, TCLOD with P-11, path not stated): (mode, path, `t_f` ms,
 /// mean ms, std ms, avg error).
@@ -387,7 +357,7 @@ fn main() {
     let result = match args.as_slice() {
         [raw, docs] => run(Path::new(raw), Path::new(docs)),
         [flag, raw, docs] if flag == "--large" => {
-            large_forest::report(Path::new(raw), Path::new(docs))
+            sherwood_lab::large_forest::report(Path::new(raw), Path::new(docs))
         }
         _ => {
             eprintln!("usage: results RAW_DIR DOCS_DIR | results --large RAW_DIR DOCS_DIR");

@@ -19,9 +19,7 @@ use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy_sherwood::cost::CostModel;
 use bevy_sherwood::ecosystem::EcosystemDesc;
 use bevy_sherwood::prelude::*;
-
-#[path = "support/windowless.rs"]
-mod windowless;
+use bevy_sherwood::testing as windowless;
 
 /// Frames between spawning a few trees and despawning the ones spawned before, by
 /// default (`--spawn-every`).
@@ -91,12 +89,17 @@ fn main() -> AppExit {
         }
     };
     let mut app = App::new();
-    app.add_plugins((windowless::windowless_plugins(), SherwoodPlugins))
-        .insert_resource(FrameBudget {
-            target_ms: options.target_ms,
-            ..default()
-        })
-        .init_resource::<Soak>();
+    app.add_plugins((
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        ),
+        SherwoodPlugins,
+    ))
+    .insert_resource(FrameBudget {
+        target_ms: options.target_ms,
+        ..default()
+    })
+    .init_resource::<Soak>();
     // Nothing else holds the CPU back while the GPU's queue grows: wait for each frame.
     app.sub_app_mut(RenderApp).add_systems(
         Render,

@@ -6,9 +6,7 @@
 //! cargo run --release --example wind_gust -- docs/wind-gust.png
 //! ```
 
-#[path = "support/windowless.rs"]
-mod windowless;
-
+use bevy_sherwood::testing as windowless;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -34,15 +32,20 @@ fn main() -> AppExit {
         .nth(1)
         .unwrap_or_else(|| "wind-gust.png".into());
     let mut app = App::new();
-    app.add_plugins((windowless::windowless_plugins(), SherwoodPlugins))
-        .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
-        .insert_resource(FrameBudget {
-            mode: LodMode::Unlimited,
-            ..default()
-        })
-        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
-            FRAME_SECONDS,
-        )));
+    app.add_plugins((
+        windowless::windowless_plugins(
+            DefaultPlugins.build().disable::<bevy::winit::WinitPlugin>(),
+        ),
+        SherwoodPlugins,
+    ))
+    .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
+    .insert_resource(FrameBudget {
+        mode: LodMode::Unlimited,
+        ..default()
+    })
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
+        FRAME_SECONDS,
+    )));
     windowless::finish_plugins(&mut app);
 
     let image = setup(app.world_mut());

@@ -1,7 +1,7 @@
 //! One-shot alerts from the Budget stage, as Bevy events an app observes
 //! (`app.add_observer(|alert: On<TargetUnreachable>| …)`): raised once when a condition
-//! has lasted [`TARGET_WARNING_SECS`] and again only after it has cleared, never once a
-//! frame.
+//! has lasted three seconds (`TARGET_WARNING_SECS`), and again only after it has cleared;
+//! never once a frame.
 
 use bevy::prelude::*;
 
@@ -18,8 +18,8 @@ pub enum Unreachable {
     TooMuchInView,
 }
 
-/// The target frame time cannot be held, and has not been for [`TARGET_WARNING_SECS`]
-/// seconds (a warning is logged as well). Raised once; again only after the target has
+/// The target frame time cannot be held, and has not been for three seconds
+/// (`TARGET_WARNING_SECS`; a warning is logged as well). Raised once; again only after the target has
 /// been held in between.
 #[derive(Event, Clone, Debug, PartialEq, Reflect)]
 pub struct TargetUnreachable {

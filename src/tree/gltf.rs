@@ -21,7 +21,7 @@ use super::analyze::{
 };
 use super::model::{Bounds, LinearRgb, TreeModel};
 
-/// How a glTF file is split into trunk and leaves and analysed: the [`GltfTreeLoader`]'s
+/// How a glTF file is split into trunk and leaves and analysed: the glTF tree loader's
 /// settings.
 ///
 /// Set them per file in a `.meta` file beside it (`bark.tree.glb.meta`):

@@ -51,3 +51,26 @@ impl FrameStats {
         }
     }
 }
+
+/// Frames per window of the within-regime noise (the machine's speed changes every
+/// 5–10 s; a window of 25 frames stays inside one regime at these frame rates).
+pub const NOISE_WINDOW: usize = 25;
+
+/// How much frame times vary, percent: the coefficient of variation over all of `times`,
+/// and its median within windows of [`NOISE_WINDOW`] frames.
+pub fn variation(times: &[f64]) -> (f64, f64) {
+    let cv = |v: &[f64]| {
+        let s = FrameStats::of(v, 1.0);
+        if s.mean > 0.0 {
+            100.0 * s.std / s.mean
+        } else {
+            0.0
+        }
+    };
+    let mut windows: Vec<f64> = times.chunks_exact(NOISE_WINDOW).map(cv).collect();
+    windows.sort_by(f64::total_cmp);
+    (
+        cv(times),
+        windows.get(windows.len() / 2).copied().unwrap_or(0.0),
+    )
+}

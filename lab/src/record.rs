@@ -1,8 +1,4 @@
 //! The forest example's `--record` files, read back by column name.
-#![allow(
-    dead_code,
-    reason = "each example includes this module and uses a different part of it"
-)]
 
 use std::path::{Path, PathBuf};
 

@@ -11,7 +11,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::frame_stats::FrameStats;
+use crate::frame_stats::{FrameStats, variation};
 use crate::record::{Record, csv_files};
 
 /// The columns one row of the table needs, per measured frame.
@@ -172,7 +172,7 @@ pub fn report(raw: &Path, docs: &Path) -> Result<(), Box<dyn std::error::Error>>
         }
         if let Some((strategy, hold)) = holds.get(&(*trees, path.clone())) {
             let all: Vec<usize> = (0..hold.frames.len()).collect();
-            let (whole, window) = crate::variation(&hold.measured);
+            let (whole, window) = variation(&hold.measured);
             writeln!(
                 md,
                 "{}\n\nNoise floor ({strategy}, identical frames): frame time varies {:.1}% over the run, {:.1}% (median) within 25-frame windows.\n",

@@ -1,9 +1,5 @@
 //! Image quality at equal time: tree-ID colours (the forest example's `--id-colors`) and
 //! what the quality example measures with them.
-#![allow(
-    dead_code,
-    reason = "the forest example encodes, the quality example decodes"
-)]
 
 /// Distinct values per colour channel: 64³ − 1 trees can be told apart.
 const LEVELS: u32 = 64;
