@@ -53,9 +53,7 @@ impl AssetLoader for CalibrationLoader {
         _settings: &(),
         _context: &mut LoadContext<'_>,
     ) -> Result<Calibration, CalibrationError> {
-        let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await?;
-        Calibration::from_ron_str(&String::from_utf8_lossy(&bytes))
+        Calibration::from_ron_str(&read_text(reader).await?)
     }
 
     fn extensions(&self) -> &[&str] {
@@ -78,14 +76,19 @@ impl AssetLoader for CalibrationIndexLoader {
         _settings: &(),
         _context: &mut LoadContext<'_>,
     ) -> Result<CalibrationIndex, CalibrationError> {
-        let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await?;
-        Ok(crate::ron_file::ron_options().from_str(&String::from_utf8_lossy(&bytes))?)
+        Ok(crate::ron_file::ron_options().from_str(&read_text(reader).await?)?)
     }
 
     fn extensions(&self) -> &[&str] {
         &["calibrations.ron"]
     }
+}
+
+/// The text an asset reader holds.
+async fn read_text(reader: &mut dyn Reader) -> Result<String, std::io::Error> {
+    let mut bytes = Vec::new();
+    reader.read_to_end(&mut bytes).await?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
 /// Registers the loaders and embeds the shipped calibrations (needs `AssetPlugin`).

@@ -42,6 +42,11 @@ pub(crate) fn headless_app() -> App {
 
 /// A headless app that loads tree models from `dir`.
 pub fn tree_app(dir: &std::path::Path) -> App {
+    app_reading(dir, TreePlugin)
+}
+
+/// A headless app with `plugins` that reads its assets from the folder `dir`.
+pub(crate) fn app_reading<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -49,8 +54,8 @@ pub fn tree_app(dir: &std::path::Path) -> App {
             file_path: dir.to_string_lossy().into_owned(),
             ..Default::default()
         },
-        TreePlugin,
-    ));
+    ))
+    .add_plugins(plugins);
     app
 }
 
@@ -299,4 +304,15 @@ pub fn finish_plugins(app: &mut App) {
     }
     app.finish();
     app.cleanup();
+}
+
+/// Held by the tests whose assertions depend on the machine's speed (real frame and logic
+/// times, a calibration run): they run one at a time, as they did in their own test
+/// binaries, so that one does not slow the other down while it measures.
+#[cfg(test)]
+pub(crate) fn measuring() -> std::sync::MutexGuard<'static, ()> {
+    static MEASURING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    MEASURING
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }

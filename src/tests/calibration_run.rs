@@ -13,6 +13,7 @@ use bevy::prelude::*;
 
 #[test]
 fn a_short_calibration_run_writes_a_calibration_the_cost_model_loads() {
+    let _measuring = common::measuring();
     let out = std::env::temp_dir().join(format!(
         "sherwood-calibration-run-{}.calibration.ron",
         std::process::id()

@@ -145,6 +145,7 @@ fn relative_error(predicted: f32, measured: f32) -> f32 {
 
 #[test]
 fn each_family_s_cost_is_learned_within_five_percent() {
+    let _measuring = common::measuring();
     let (mut app, size) = app(Calibration::default());
     let mut driver = Driver::new(0.02);
     // Each family's share of the true rendering time over the run.
@@ -233,6 +234,7 @@ fn settle(errors: &[(f32, f32)], tolerance: f32) -> (f32, f32) {
 /// ×3 is within 5.2% after 1.7 s and within 5% after 2.5 s.)
 #[test]
 fn a_calibration_three_times_off_either_way_is_learned_within_three_seconds() {
+    let _measuring = common::measuring();
     for factor in [3.0, 1.0 / 3.0] {
         let (mut app, size) = app(Calibration::default().scaled(factor));
         let truth = Truth {
@@ -257,6 +259,7 @@ fn a_calibration_three_times_off_either_way_is_learned_within_three_seconds() {
 
 #[test]
 fn a_step_in_speed_is_followed_within_a_second_without_overshoot() {
+    let _measuring = common::measuring();
     let (mut app, size) = app(Calibration::default());
     let mut driver = Driver::new(0.0);
     // Before the step: how far predictions stray as the mix of families changes.
@@ -295,6 +298,7 @@ fn a_step_in_speed_is_followed_within_a_second_without_overshoot() {
 
 #[test]
 fn one_hitch_barely_moves_the_model() {
+    let _measuring = common::measuring();
     let (mut app, size) = app(Calibration::default());
     let mut driver = Driver::new(0.0);
     for k in 0..300 {
@@ -319,6 +323,7 @@ fn one_hitch_barely_moves_the_model() {
 
 #[test]
 fn a_family_never_drawn_keeps_its_prior_and_constant_counts_stay_finite() {
+    let _measuring = common::measuring();
     // Triangles only (TC), one view, one target: lines and points are never drawn and
     // the counts do not vary.
     let (mut app, _) = app(Calibration::default());
@@ -354,6 +359,7 @@ fn a_family_never_drawn_keeps_its_prior_and_constant_counts_stay_finite() {
 
 #[test]
 fn incomplete_and_absurd_frames_are_not_learned() {
+    let _measuring = common::measuring();
     let (mut app, size) = app(Calibration::default());
     let before = app.world().resource::<CostModel>().learned();
     for k in 0..20 {
@@ -379,6 +385,7 @@ fn incomplete_and_absurd_frames_are_not_learned() {
 /// debugger): neither is learned from, and the model is where it was when they end.
 #[test]
 fn a_minimised_window_and_a_stall_are_not_learned() {
+    let _measuring = common::measuring();
     let (mut app, size) = app(Calibration::default());
     let mut driver = Driver::new(0.02);
     for k in 0..200 {
@@ -427,6 +434,7 @@ fn a_minimised_window_and_a_stall_are_not_learned() {
 /// measurement (as timestamps read back from frames in flight are).
 #[test]
 fn a_gpu_bound_frame_is_predicted_by_its_gpu_time_reported_two_frames_late() {
+    let _measuring = common::measuring();
     // The largest error of the settled frames with GPU times, the smallest without.
     let mut final_error = [0.0f32; 2];
     for (run, report_gpu) in [true, false].into_iter().enumerate() {
@@ -489,6 +497,7 @@ fn a_gpu_bound_frame_is_predicted_by_its_gpu_time_reported_two_frames_late() {
 /// time (the rendering minus the fixed part) tells them apart.
 #[test]
 fn a_still_view_learns_its_fixed_part_from_the_pass_time() {
+    let _measuring = common::measuring();
     let calibration = Calibration {
         render_fixed: 4.0 * MACHINE.fixed,
         ..Calibration::default()
@@ -528,6 +537,7 @@ fn a_still_view_learns_its_fixed_part_from_the_pass_time() {
 /// the driver) and handing over takes 4 ms, learned from the pipelined prior.
 #[test]
 fn the_overlap_of_the_two_worlds_is_learned_from_the_frames() {
+    let _measuring = common::measuring();
     use crate::cost::FrameOverlap;
     let (mut app, size) = app(Calibration::default());
     app.world_mut()

@@ -240,17 +240,8 @@ fn calibrations_are_chosen_by_adapter_then_driver() {
 /// An app reading calibrations from the asset folder `dir` (with no window, no renderer:
 /// the adapter is inserted by hand).
 fn calibration_app(dir: &std::path::Path, adapter: AdapterIdentity) -> bevy::prelude::App {
-    use bevy::prelude::*;
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin {
-            file_path: dir.to_string_lossy().into_owned(),
-            ..Default::default()
-        },
-        CostPlugin,
-    ))
-    .insert_resource(adapter);
+    let mut app = crate::testing::app_reading(dir, CostPlugin);
+    app.insert_resource(adapter);
     app
 }
 

@@ -113,6 +113,7 @@ fn with_no_time_every_visible_object_is_still_drawn() {
 
 #[test]
 fn the_prediction_stays_within_the_rendering_time() {
+    let _measuring = common::measuring();
     let mut app = app();
     for mode in [LodMode::Tc, LodMode::Tclod] {
         for target in [30.0, 60.0, 120.0, 250.0, 1000.0] {
@@ -308,15 +309,7 @@ fn the_budget_chooses_the_calibration_file_and_a_bad_one_falls_back() {
     use crate::cost::CalibrationChoice;
     let dir = std::env::temp_dir().join(format!("sherwood-lod-calibration-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        AssetPlugin {
-            file_path: dir.to_string_lossy().into_owned(),
-            ..Default::default()
-        },
-        CostPlugin,
-    ));
+    let mut app = common::app_reading(&dir, CostPlugin);
     let mut measured = Calibration {
         adapter: "test adapter".into(),
         ..Default::default()
@@ -529,6 +522,7 @@ fn busy_logic(busy: Res<BusyLogic>) {
 /// frames later.
 #[test]
 fn a_step_in_the_app_s_logic_is_in_the_same_frame_s_budget() {
+    let _measuring = common::measuring();
     let mut app = app();
     app.init_resource::<BusyLogic>()
         .add_systems(Update, busy_logic);
