@@ -23,6 +23,7 @@ impl Plugin for SherwoodCorePlugin {
             .register_type::<LodView>()
             .register_type::<crate::instance::TreeInstance>()
             .register_type::<ForestInstances>()
+            .register_type::<crate::instance::FixedDrawList>()
             .register_type::<crate::view::BudgetView>()
             .add_systems(
                 PostUpdate,

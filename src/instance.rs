@@ -77,7 +77,8 @@ impl TreeInstance {
 /// the wind leave it alone, and the render pass draws the
 /// [`TreeDrawList`](crate::draw::TreeDrawList) spawned with it (the full tree without
 /// one). Insert it when the tree is spawned.
-#[derive(Component, Clone, Copy, Debug, Default)]
+#[derive(Component, Clone, Copy, Debug, Default, Reflect)]
+#[reflect(Component, Default)]
 pub struct FixedDrawList;
 
 /// Every [`TreeInstance`] without [`FixedDrawList`], densely indexed: instance `i` is
@@ -482,7 +483,7 @@ mod tests {
         #[cfg(feature = "render")]
         assert!(app.world().get::<Visibility>(tree).is_some());
         let registry = app.world().resource::<AppTypeRegistry>().read();
-        for name in ["TreeInstance", "ForestInstances"] {
+        for name in ["TreeInstance", "ForestInstances", "FixedDrawList"] {
             assert!(
                 registry.get_with_short_type_path(name).is_some(),
                 "{name} is not registered"

@@ -1,6 +1,7 @@
 //! Calibrations: what an adapter's primitives and an app's logic cost, measured once and
 //! saved per adapter (`*.calibration.ron`).
 
+use bevy::prelude::{ReflectDefault, ReflectResource};
 use serde::{Deserialize, Serialize};
 
 use super::LinearCost;
@@ -402,7 +403,8 @@ impl Calibration {
 
 /// The adapter the app renders with, as a calibration names it. The render plugin inserts
 /// it once the renderer is up; calibrations are matched against it.
-#[derive(bevy::prelude::Resource, Clone, Debug, PartialEq, Eq, Default)]
+#[derive(bevy::prelude::Resource, Clone, Debug, PartialEq, Eq, Default, bevy::reflect::Reflect)]
+#[reflect(Resource, Default)]
 pub struct AdapterIdentity {
     /// wgpu's adapter name, e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`.
     pub name: String,

@@ -110,7 +110,8 @@ pub enum CalibrationChoice {
 /// (`index.calibrations.ron`, which [`CalibrationChoice::Adapter`] reads): `calibration/`
 /// in the app's asset folder — Bevy's `AssetPlugin::file_path`, resolved as Bevy resolves
 /// it. [`CostPlugin`] inserts it unless one is already there.
-#[derive(Resource, Clone, Debug, PartialEq, Eq)]
+#[derive(Resource, Clone, Debug, PartialEq, Eq, Reflect)]
+#[reflect(Resource)]
 pub struct CalibrationDir(pub std::path::PathBuf);
 
 impl CalibrationDir {
@@ -156,6 +157,8 @@ impl Plugin for CostPlugin {
             calibration_assets::register(app);
         }
         app.register_type::<CostSettings>()
+            .register_type::<AdapterIdentity>()
+            .register_type::<CalibrationDir>()
             .init_resource::<CostSettings>()
             .init_resource::<CostModel>()
             .init_resource::<MeasuredPacing>()

@@ -81,7 +81,8 @@ pub struct InForest(pub Entity);
 pub struct ForestMembers(Vec<Entity>);
 
 /// What a [`Forest`] has spawned.
-#[derive(Component, Clone, Debug, Default)]
+#[derive(Component, Clone, Debug, Default, Reflect)]
+#[reflect(Component, Default)]
 pub struct ForestState {
     /// The tree model of every species, in the ecosystem's species order.
     pub species: Vec<Handle<TreeModel>>,
@@ -125,6 +126,7 @@ impl Plugin for EcosystemPlugin {
         );
         app.init_asset::<Ecosystem>()
             .register_type::<Forest>()
+            .register_type::<ForestState>()
             .register_asset_loader(EcosystemLoader)
             .add_systems(Update, spawn_forests);
         #[cfg(feature = "render")]

@@ -53,7 +53,8 @@ use crate::wind::WindSettings;
 
 /// What the calibration run measures. The defaults took about 25 minutes on a 2-core
 /// machine rendering with lavapipe (137 configurations, frames of up to a second).
-#[derive(Resource, Clone, Debug, PartialEq)]
+#[derive(Resource, Clone, Debug, PartialEq, Reflect)]
+#[reflect(Resource)]
 pub struct CalibrationSettings {
     /// Where to write the calibration; `None`: the [`CalibrationDir`] under the adapter's
     /// `calibration_file_name`.
@@ -106,7 +107,8 @@ pub struct CalibrationRunPlugin;
 
 impl Plugin for CalibrationRunPlugin {
     fn build(&self, app: &mut App) {
-        app.init_resource::<CalibrationSettings>()
+        app.register_type::<CalibrationSettings>()
+            .init_resource::<CalibrationSettings>()
             .init_resource::<CalibrationProgress>()
             .init_resource::<RunState>()
             .add_systems(

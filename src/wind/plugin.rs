@@ -51,7 +51,8 @@ impl Default for WindSettings {
 }
 
 /// What the wind stage did in the last frame.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource, Default)]
 pub struct WindStats {
     /// Visible instances with a spring set (candidates for motion).
     pub candidates: u32,
@@ -103,6 +104,7 @@ impl Plugin for WindPlugin {
             .register_asset_loader(SpringSetLoader)
             .init_resource::<WindSettings>()
             .register_type::<WindSettings>()
+            .register_type::<WindStats>()
             .init_resource::<WindState>()
             .init_resource::<RingOffsetTable>()
             .init_resource::<MovedShapes>()
