@@ -55,9 +55,9 @@ pub mod prelude {
         FrameBudget, FrameGoal, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin,
         StrategyKind, TargetUnreachable, Unreachable,
     };
-    #[cfg(feature = "render")]
     #[cfg(feature = "hud")]
     pub use crate::render::{ForestHud, ForestHudPlugin};
+    #[cfg(feature = "render")]
     pub use crate::render::{ForestRenderPlugin, ForestRenderStats};
     pub use crate::tree::{TreeModel, TreePlugin};
     pub use crate::view::{BudgetView, LodView};
