@@ -323,7 +323,7 @@ struct Reports {
 /// compiling (for at most [`COMPILING_SECONDS`]): the frame's times are not a real
 /// frame's. Cleared when the render world starts a frame.
 #[derive(Resource, Debug, Default)]
-#[cfg(any(test, feature = "render"))]
+#[cfg(feature = "render")]
 pub(crate) struct DrawIncomplete(pub bool);
 
 /// The render world's view of the clock.
@@ -474,7 +474,7 @@ fn build_render(app: &mut App) {
 /// How long pipelines may keep compiling before their frames count as real again,
 /// seconds: a shader that never loads keeps its pipeline queued for ever, and the model
 /// must not stop learning for it.
-#[cfg(any(test, feature = "render"))]
+#[cfg(feature = "render")]
 pub(crate) const COMPILING_SECONDS: f32 = 10.0;
 
 /// A frame rendered while some pipeline was still compiling is incomplete: what needs it

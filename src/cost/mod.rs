@@ -18,11 +18,13 @@ pub(crate) mod online;
 mod pacing;
 mod primitive;
 
+#[cfg(feature = "render")]
+pub(crate) use calibration::MeshPathCost;
 #[cfg(test)]
 pub(crate) use calibration::logic_time;
 pub use calibration::{AdapterIdentity, Calibration, CalibrationError};
 #[cfg(any(test, feature = "render"))]
-pub(crate) use calibration::{LogicTable, MeshPathCost, calibration_file_name};
+pub(crate) use calibration::{LogicTable, calibration_file_name};
 pub(crate) use calibration_assets::APP_INDEX;
 #[cfg(any(test, feature = "render"))]
 pub(crate) use calibration_assets::add_to_index;
@@ -30,11 +32,13 @@ pub(crate) use calibration_assets::add_to_index;
 pub(crate) use calibration_assets::choose_calibration;
 use calibration_assets::{CalibrationIndex, CalibrationLookup, LookupStep};
 pub(crate) use fit::LinearCost;
+#[cfg(feature = "render")]
+pub(crate) use fit::fit_nonnegative_cost;
 #[cfg(any(test, feature = "render"))]
-pub(crate) use fit::{CostSample, fit_nonnegative_cost, fit_sized_costs};
+pub(crate) use fit::{CostSample, fit_sized_costs};
 #[cfg(test)]
 pub(crate) use fit::{FitError, fit_linear_cost};
-#[cfg(any(test, feature = "render"))]
+#[cfg(feature = "render")]
 pub(crate) use measure::DrawIncomplete;
 pub(crate) use measure::WAIT_THRESHOLD;
 pub use measure::{FrameBound, FrameClock, FrameSample, FrameSamples};

@@ -14,7 +14,6 @@ pub(crate) use hierarchy::{
 #[cfg(any(test, feature = "testing"))]
 pub(crate) use hierarchy::{CullInstance, CullResult, cull_brute_force};
 pub use plugin::CullView;
-#[cfg(feature = "render")]
 #[cfg(test)]
 pub(crate) use plugin::LOADING_WARNING_SECS;
 pub use plugin::{CullingDebug, CullingPlugin, CullingSettings, ForestCulling};

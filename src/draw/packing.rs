@@ -226,6 +226,7 @@ pub(crate) struct FrameChunks {
 
 /// What [`FrameChunks::mark`] remembers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg(feature = "render")]
 pub(crate) struct ChunksMark {
     kinds: [usize; 4],
     pending: [usize; 4],
@@ -242,6 +243,7 @@ pub(crate) const GATHERED: u32 = u32::MAX;
 
 impl FrameChunks {
     /// Empties every kind, keeping the allocations.
+    #[cfg(feature = "render")]
     pub(crate) fn clear(&mut self) {
         self.kinds.iter_mut().for_each(Vec::clear);
         self.pending.iter_mut().for_each(Vec::clear);
@@ -311,6 +313,7 @@ impl FrameChunks {
     }
 
     /// Where the chunks stand now, to go back to with [`truncate`](Self::truncate).
+    #[cfg(feature = "render")]
     pub(crate) fn mark(&self) -> ChunksMark {
         ChunksMark {
             kinds: self.kinds.each_ref().map(Vec::len),
@@ -319,6 +322,7 @@ impl FrameChunks {
     }
 
     /// Drops what was pushed since `mark` (before [`finish`](Self::finish)).
+    #[cfg(feature = "render")]
     pub(crate) fn truncate(&mut self, mark: ChunksMark) {
         for (kind, len) in self.kinds.iter_mut().zip(mark.kinds) {
             kind.truncate(len);
@@ -331,6 +335,7 @@ impl FrameChunks {
     /// The most chunks and gathered slots [`finish`](Self::finish) can leave with what
     /// was pushed so far: the leftovers of each kind fill whole chunks but for one per
     /// line width or point size ([`MAX_PRIMITIVE_PIXELS`] at most).
+    #[cfg(feature = "render")]
     pub(crate) fn len_bound(&self) -> (usize, usize) {
         let mut chunks = 0;
         let mut gathered = 0;
