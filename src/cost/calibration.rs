@@ -235,9 +235,12 @@ pub enum CalibrationError {
     /// A value is out of range.
     #[error("{0}")]
     Invalid(String),
-    /// The file could not be read.
-    #[error("{0}")]
+    /// Reading failed.
+    #[error("could not read the file: {0}")]
     Io(#[from] std::io::Error),
+    /// Not UTF-8.
+    #[error("the file is not UTF-8 text: {0}")]
+    Utf8(#[from] core::str::Utf8Error),
 }
 
 impl Calibration {

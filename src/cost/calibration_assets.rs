@@ -12,6 +12,7 @@ use bevy::tasks::{IoTaskPool, Task, block_on, futures_lite::future};
 use serde::Deserialize;
 
 use super::calibration::{AdapterIdentity, Calibration, CalibrationError};
+use crate::ron_file::read_text;
 
 /// The index of an app's own calibrations, in its default asset source.
 pub(crate) const APP_INDEX: &str = "calibration/index.calibrations.ron";
@@ -53,7 +54,7 @@ impl AssetLoader for CalibrationLoader {
         _settings: &(),
         _context: &mut LoadContext<'_>,
     ) -> Result<Calibration, CalibrationError> {
-        Calibration::from_ron_str(&read_text(reader).await?)
+        Calibration::from_ron_str(&read_text::<CalibrationError>(reader).await?)
     }
 
     fn extensions(&self) -> &[&str] {
@@ -76,19 +77,13 @@ impl AssetLoader for CalibrationIndexLoader {
         _settings: &(),
         _context: &mut LoadContext<'_>,
     ) -> Result<CalibrationIndex, CalibrationError> {
-        Ok(crate::ron_file::ron_options().from_str(&read_text(reader).await?)?)
+        let text = read_text::<CalibrationError>(reader).await?;
+        Ok(crate::ron_file::ron_options().from_str(&text)?)
     }
 
     fn extensions(&self) -> &[&str] {
         &["calibrations.ron"]
     }
-}
-
-/// The text an asset reader holds.
-async fn read_text(reader: &mut dyn Reader) -> Result<String, std::io::Error> {
-    let mut bytes = Vec::new();
-    reader.read_to_end(&mut bytes).await?;
-    Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
 /// Registers the loaders and embeds the shipped calibrations (needs `AssetPlugin`).
