@@ -298,9 +298,10 @@ fn load_calibration(
             }
         };
     }
-    let (Some((server, calibrations, indexes)), false) =
-        (&assets, matches!(state.lookup, CalibrationLookup::Idle))
-    else {
+    if matches!(state.lookup, CalibrationLookup::Idle) {
+        return;
+    }
+    let Some((server, calibrations, indexes)) = &assets else {
         return;
     };
     let unknown = AdapterIdentity::default();

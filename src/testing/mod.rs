@@ -60,7 +60,7 @@ pub(crate) fn app_reading<M>(dir: &std::path::Path, plugins: impl bevy::app::Plu
 }
 
 /// Updates until the asset has loaded or failed (bounded).
-pub fn settle(app: &mut App, handle: &Handle<TreeModel>) -> LoadState {
+pub fn settle<A: Asset>(app: &mut App, handle: &Handle<A>) -> LoadState {
     for _ in 0..2000 {
         app.update();
         let state = app

@@ -292,17 +292,7 @@ fn the_adapter_s_calibration_loads_from_the_app_s_index_and_bad_files_are_skippe
         .world()
         .resource::<bevy::asset::AssetServer>()
         .load("calibration/broken.calibration.ron");
-    let state = loop {
-        app.update();
-        let state = app
-            .world()
-            .resource::<bevy::asset::AssetServer>()
-            .load_state(broken.id());
-        if !state.is_loading() {
-            break state;
-        }
-    };
-    match state {
+    match crate::testing::settle(&mut app, &broken) {
         bevy::asset::LoadState::Failed(e) => {
             let e = e.to_string();
             assert!(
