@@ -31,33 +31,23 @@ struct LargeRun {
 
 fn read(csv: &Path) -> Result<LargeRun, String> {
     let record = Record::read(csv)?;
-    let column = |name: &str| {
-        record
-            .column(name)
-            .map_err(|e| format!("{}: {e}", csv.display()))
-    };
-    let stages: Vec<Vec<f64>> = ["value_stage_ms", "budget_stage_ms", "draw_lists_stage_ms"]
-        .into_iter()
-        .map(column)
-        .collect::<Result<_, _>>()?;
-    let target = column("target_ms")?
+    let target = record
+        .frames
         .first()
-        .copied()
+        .map(|r| f64::from(r.target_ms))
         .filter(|t| *t > 0.0)
         .ok_or_else(|| format!("{}: no frames with a target", csv.display()))?;
     Ok(LargeRun {
-        frames: column("frame")?.into_iter().map(|f| f as u32).collect(),
-        measured: column("measured_ms")?,
-        predicted: column("predicted_ms")?,
-        floor_excess: column("floor_excess_ms")?,
-        undrawn: column("undrawn")?,
-        groups: column("impostors_drawn")?,
-        trees: column("trees_drawn")?,
-        visible: column("visible")?,
-        stages: (0..stages[0].len())
-            .map(|i| stages.iter().map(|s| s[i]).sum())
-            .collect(),
-        logic: column("measured_logic_ms")?,
+        frames: record.frames.iter().map(|r| r.frame).collect(),
+        measured: record.column(|r| r.measured_ms),
+        predicted: record.column(|r| r.predicted_ms),
+        floor_excess: record.column(|r| r.floor_excess_ms),
+        undrawn: record.column(|r| r.undrawn as f32),
+        groups: record.column(|r| r.impostors_drawn as f32),
+        trees: record.column(|r| r.trees_drawn as f32),
+        visible: record.column(|r| r.visible as f32),
+        stages: record.column(|r| r.value_stage_ms + r.budget_stage_ms + r.draw_lists_stage_ms),
+        logic: record.column(|r| r.measured_logic_ms),
         target,
     })
 }

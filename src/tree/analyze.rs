@@ -210,7 +210,7 @@ pub enum AnalysisWarning {
 
 /// Settings of [`analyze`]; glTF users set them through
 /// [`GltfTreeSettings::analysis`](crate::tree::GltfTreeSettings) (a `.meta` file beside
-/// the tree, or `AssetServer::load_with_settings`). Every field has a default, so a RON
+/// the tree, or `AssetServer::load_builder().with_settings(…)`). Every field has a default, so a RON
 /// value names only what it changes: `(ground: -0.05)`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default)]

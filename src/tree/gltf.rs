@@ -39,7 +39,7 @@ use super::model::{Bounds, LinearRgb, TreeModel};
 /// )
 /// ```
 ///
-/// or in code with `AssetServer::load_with_settings`. Fields left out keep their
+/// or in code with `AssetServer::load_builder().with_settings(…)`. Fields left out keep their
 /// defaults.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]

@@ -5,7 +5,7 @@
 //! the same recorded frames without rendering them again.
 //!
 //! ```sh
-//! cargo run --release --example cost_replay -- RECORD.csv [--calibration FILE]
+//! cargo run --release -p sherwood-lab -- cost-replay RECORD.csv [--calibration FILE]
 //!     [--scale F] [--speed-seconds S] [--costs-seconds S] [--twin UNLIMITED.csv]
 //! ```
 //!
@@ -13,61 +13,78 @@
 //! the binding frames (the twin took more than 1.2 × the target).
 
 use std::collections::VecDeque;
-use std::path::Path;
+use std::path::PathBuf;
+use std::process::ExitCode;
 
 use bevy_sherwood::cost::{
     Calibration, CostModel, FamilyTimes, FrameOverlap, FramePrediction, FrameSample, LearningRates,
 };
-use sherwood_lab::record::Record;
 
-const USAGE: &str = "usage: cost_replay RECORD.csv [--calibration FILE] [--scale F] \
-[--speed-seconds S] [--costs-seconds S] [--twin UNLIMITED.csv]";
+use crate::record::Record;
 
-fn main() {
-    if let Err(e) = run() {
-        eprintln!("cost_replay: {e}\n{USAGE}");
-        std::process::exit(1);
-    }
+/// The cost replay's command line.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The forest tool's record to replay.
+    record: PathBuf,
+    /// The calibration to start from (a path, or one under `assets/`; default: the
+    /// shipped lavapipe calibration, or the built-in costs when it is missing).
+    #[arg(long)]
+    calibration: Option<PathBuf>,
+    /// Multiply the calibration by F.
+    #[arg(long, default_value_t = 1.0)]
+    scale: f32,
+    /// The learning's speed time constant, s.
+    #[arg(long)]
+    speed_seconds: Option<f32>,
+    /// The learning's costs time constant, s.
+    #[arg(long)]
+    costs_seconds: Option<f32>,
+    /// The unlimited run of the same path: the error is also given on its binding frames.
+    #[arg(long)]
+    twin: Option<PathBuf>,
 }
 
-fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let mut it = args.iter();
-    let record = it.next().ok_or("no record")?;
-    let mut calibration = read_calibration_file(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/calibration/llvmpipe-llvm-15-0-6-256-bits.calibration.ron"
-    )))
-    .unwrap_or_else(|_| Calibration::default());
-    let (mut scale, mut rates, mut twin) = (1.0_f32, LearningRates::default(), None);
-    while let Some(flag) = it.next() {
-        let mut value = || it.next().ok_or(format!("{flag} needs a value"));
-        let number = |v: &String| v.parse::<f32>().map_err(|e| format!("{flag}: {e}"));
-        match flag.as_str() {
-            "--calibration" => calibration = read_calibration_file(Path::new(value()?))?,
-            "--scale" => scale = number(value()?)?,
-            "--speed-seconds" => rates.speed_seconds = number(value()?)?,
-            "--costs-seconds" => rates.costs_seconds = number(value()?)?,
-            "--twin" => twin = Some(Record::read(Path::new(value()?))?.column("measured_ms")?),
-            other => return Err(format!("unknown flag {other}")),
-        }
+/// Runs the cost replay.
+pub fn run(args: Args) -> ExitCode {
+    crate::report("cost-replay", replay(args))
+}
+
+fn replay(args: Args) -> Result<(), String> {
+    let calibration = match &args.calibration {
+        Some(file) => crate::assets::read_calibration(file)?,
+        None => crate::assets::read_calibration(
+            "calibration/llvmpipe-llvm-15-0-6-256-bits.calibration.ron".as_ref(),
+        )
+        .unwrap_or_else(|_| Calibration::default()),
+    };
+    let scale = args.scale;
+    let mut rates = LearningRates::default();
+    if let Some(s) = args.speed_seconds {
+        rates.speed_seconds = s;
     }
-    let r = Record::read(Path::new(record))?;
-    let col = |name| r.column(name);
-    let (visible, target) = (col("visible")?, col("target_ms")?);
+    if let Some(s) = args.costs_seconds {
+        rates.costs_seconds = s;
+    }
+    let twin = match &args.twin {
+        Some(file) => Some(Record::read(file)?.column(|r| r.measured_ms)),
+        None => None,
+    };
+    let r = Record::read(&args.record)?;
+    let col = |field: fn(&crate::record::FrameRecord) -> f32| r.column(field);
+    let (visible, target) = (col(|r| r.visible as f32), col(|r| r.target_ms));
     let (logic, render, interval) = (
-        col("measured_logic_ms")?,
-        col("measured_render_ms")?,
-        col("measured_ms")?,
+        col(|r| r.measured_logic_ms),
+        col(|r| r.measured_render_ms),
+        col(|r| r.measured_ms),
     );
     let family = [
-        col("cal_triangles_ms")?,
-        col("cal_triangle_pixels_ms")?,
-        col("cal_lines_ms")?,
-        col("cal_points_ms")?,
-        // Records of scenes without ladder entities have no mesh column.
-        col("cal_meshes_ms").unwrap_or_else(|_| vec![0.0; visible.len()]),
-        col("cal_mesh_pixels_ms").unwrap_or_else(|_| vec![0.0; visible.len()]),
+        col(|r| r.cal_triangles_ms),
+        col(|r| r.cal_triangle_pixels_ms),
+        col(|r| r.cal_lines_ms),
+        col(|r| r.cal_points_ms),
+        col(|r| r.cal_meshes_ms),
+        col(|r| r.cal_mesh_pixels_ms),
     ];
     let mut model = CostModel::new(calibration.scaled(scale), FrameOverlap::PIPELINED, rates);
     let mut arriving = VecDeque::new();
@@ -133,9 +150,4 @@ fn run() -> Result<(), String> {
     println!();
     println!("learned: {:?}", model.learned());
     Ok(())
-}
-
-fn read_calibration_file(path: &Path) -> Result<Calibration, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    Calibration::from_ron_str(&text).map_err(|e| format!("{}: {e}", path.display()))
 }

@@ -7,16 +7,19 @@
 //! 3. draw calls and frame time for 2000 trees drawn in all four primitive kinds.
 //!
 //! ```sh
-//! cargo run --release --example pass_benchmark
-//! cargo run --release --example pass_benchmark -- --picture docs/render-primitive-kinds.png
+//! cargo run --release -p sherwood-lab -- pass-benchmark
+//! cargo run --release -p sherwood-lab -- pass-benchmark --picture docs/render-primitive-kinds.png
 //! ```
 //!
 //! Frame time is wall time of one `App::update` followed by waiting for the GPU (on
 //! lavapipe the "GPU" is the CPU, so the two are one cost). Each figure is the median of
 //! the measured frames, after every pipeline has compiled.
 
-use bevy_sherwood::testing as windowless;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 use std::time::Instant;
+
+use bevy_sherwood::testing as windowless;
 
 use bevy::camera::{ClearColorConfig, RenderTarget};
 use bevy::prelude::*;
@@ -155,11 +158,9 @@ impl Bench {
 }
 
 fn species(name: &str) -> TreeModel {
-    let path = format!(
-        "{}/assets/species/{name}.species.ron",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let path = crate::assets::root().join(format!("species/{name}.species.ron"));
+    let path = path.display();
+    let text = std::fs::read_to_string(path.to_string()).unwrap_or_else(|e| panic!("{path}: {e}"));
     SpeciesDesc::from_ron_str(&text)
         .and_then(|s| Ok(s.generate_and_analyze()?.model))
         .unwrap_or_else(|e| panic!("{path}: {e}"))
@@ -208,7 +209,7 @@ fn all_kinds(model: &TreeModel) -> TreeDrawList {
     list
 }
 
-fn picture(path: &str) {
+fn picture(path: &Path) {
     let mut bench = Bench::new();
     let model = species("grand");
     let list = all_kinds(&model);
@@ -230,22 +231,27 @@ fn picture(path: &str) {
     for _ in 0..10 {
         bench.frame();
     }
-    println!("wrote {path}");
+    println!("wrote {}", path.display());
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    match args.as_slice() {
-        [] => run(),
-        [flag, path] if flag == "--picture" => picture(path),
-        _ => {
-            eprintln!("usage: pass_benchmark [--picture FILE.png]");
-            std::process::exit(2);
-        }
+/// The pass benchmark's command line.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Instead of measuring, save a picture of a tree drawn in all four primitive kinds.
+    #[arg(long, value_name = "FILE.png")]
+    picture: Option<PathBuf>,
+}
+
+/// Runs the pass benchmark.
+pub fn run(args: Args) -> ExitCode {
+    match &args.picture {
+        Some(path) => picture(path),
+        None => benchmark(),
     }
+    ExitCode::SUCCESS
 }
 
-fn run() {
+fn benchmark() {
     let mut bench = Bench::new();
     let models: Vec<TreeModel> = ["slender", "broad", "grand"]
         .into_iter()

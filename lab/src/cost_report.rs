@@ -5,21 +5,22 @@
 //! calibration and with one 3× too dear or too cheap.
 //!
 //! ```sh
-//! cargo run --release --example cost_report -- results/learning docs
+//! cargo run --release -p sherwood-lab -- cost-report results/learning docs
 //! ```
 //!
 //! Runs are `RAW/<trees>-<path>-unlimited.csv`, `RAW/<trees>-<path>-<mode>-hold<K>.csv`
 //! (the camera held at the path's frame K: identical frames) and
 //! `RAW/<trees>-<path>-<mode>-<fraction>-x<scale>.csv` (target = fraction × the unlimited
-//! peak, calibration × scale), each the forest example's `--record` with `--warmup 0`, so
+//! peak, calibration × scale), each the forest tool's `--record` with `--warmup 0`, so
 //! that frame 0 is the first frame drawn and the learning is seen from its start.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 
-use sherwood_lab::frame_stats::FrameStats;
-use sherwood_lab::record::{self, Record};
+use crate::frame_stats::FrameStats;
+use crate::record::{self, Record};
 
 /// Frames a learning run is given before its prediction error counts.
 const LEARNING_FRAMES: usize = 60;
@@ -41,15 +42,10 @@ struct Frames {
 impl Frames {
     fn read(csv: &Path) -> Result<Self, String> {
         let record = Record::read(csv)?;
-        let column = |name| {
-            record
-                .column(name)
-                .map_err(|e| format!("{}: {e}", csv.display()))
-        };
         Ok(Self {
-            measured: column("measured_ms")?,
-            predicted: column("predicted_ms")?,
-            target: column("target_ms")?,
+            measured: record.column(|r| r.measured_ms),
+            predicted: record.column(|r| r.predicted_ms),
+            target: record.column(|r| r.target_ms),
         })
     }
 }
@@ -107,19 +103,21 @@ fn prediction_error(frames: &Frames, which: &[usize]) -> f64 {
         / which.len().max(1) as f64
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [raw, docs] = args.as_slice() else {
-        eprintln!("usage: cost_report RAW_DIR DOCS_DIR");
-        std::process::exit(2);
-    };
-    if let Err(e) = run(Path::new(raw), Path::new(docs)) {
-        eprintln!("cost_report: {e}");
-        std::process::exit(1);
-    }
+/// The cost report's command line.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The runs' records.
+    raw: PathBuf,
+    /// Where `cost-model.md` goes.
+    docs: PathBuf,
 }
 
-fn run(raw: &Path, docs: &Path) -> Result<(), String> {
+/// Runs the cost report.
+pub fn run(args: Args) -> ExitCode {
+    crate::report("cost-report", report(&args.raw, &args.docs))
+}
+
+fn report(raw: &Path, docs: &Path) -> Result<(), String> {
     let paths = record::csv_files(raw)?;
     let stem = |p: &Path| {
         p.file_stem()

@@ -4,7 +4,7 @@
 //! cost model has learned, to show that neither drifts. `scripts/soak.sh` runs it.
 //!
 //! ```sh
-//! cargo run --release --example soak -- --frames 100000 --trees 100 --target-ms 10
+//! cargo run --release -p sherwood-lab -- soak --frames 100000 --trees 100 --target-ms 10
 //! ```
 //!
 //! `--spawn-every 0` plants nothing (to tell what the spawn cycles cost from the rest).
@@ -37,39 +37,21 @@ const STRATEGIES: [(LodMode, StrategyKind); 5] = [
     (LodMode::Tclod, StrategyKind::TriangleBudget),
 ];
 
-struct Options {
+/// The soak run's command line.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Frames to run.
+    #[arg(long, default_value_t = 100_000)]
     frames: u64,
+    /// Trees of the default ecosystem.
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..))]
     trees: u32,
+    /// Target frame time, ms.
+    #[arg(long, default_value_t = 10.0)]
     target_ms: f32,
-    /// Frames between plantings; 0: never.
+    /// Frames between plantings; 0: never (to tell what the spawn cycles cost).
+    #[arg(long, default_value_t = SPAWN_EVERY)]
     spawn_every: u64,
-}
-
-fn parse() -> Result<Options, String> {
-    let mut o = Options {
-        frames: 100_000,
-        trees: 100,
-        target_ms: 10.0,
-        spawn_every: SPAWN_EVERY,
-    };
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let mut it = args.iter();
-    while let Some(flag) = it.next() {
-        let value = it.next().ok_or(format!("{flag} needs a value"))?;
-        let bad = || format!("{flag}: `{value}` is not a number");
-        match flag.as_str() {
-            "--frames" => o.frames = value.parse().map_err(|_| bad())?,
-            "--trees" => o.trees = value.parse().map_err(|_| bad())?,
-            "--target-ms" => o.target_ms = value.parse().map_err(|_| bad())?,
-            "--spawn-every" => o.spawn_every = value.parse().map_err(|_| bad())?,
-            _ => {
-                return Err(format!(
-                    "unknown flag {flag} (--frames, --trees, --target-ms, --spawn-every)"
-                ));
-            }
-        }
-    }
-    Ok(o)
 }
 
 /// The hand-planted trees of the last spawn, and the camera.
@@ -80,14 +62,8 @@ struct Soak {
     spawn_every: u64,
 }
 
-fn main() -> AppExit {
-    let options = match parse() {
-        Ok(o) => o,
-        Err(e) => {
-            eprintln!("soak: {e}");
-            return AppExit::error();
-        }
-    };
+/// Runs the soak.
+pub fn run(options: Args) -> AppExit {
     let mut app = App::new();
     app.add_plugins((
         windowless::windowless_plugins(
@@ -134,11 +110,9 @@ fn wait_for_gpu(device: Res<RenderDevice>) {
 }
 
 fn setup(world: &mut World, trees: u32) -> Result<(), String> {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/forests/default.ecosystem.ron"
-    );
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
+    let path = crate::assets::root().join("forests/default.ecosystem.ron");
+    let path = path.display();
+    let text = std::fs::read_to_string(path.to_string()).map_err(|e| format!("{path}: {e}"))?;
     let mut desc = EcosystemDesc::from_ron_str(&text).map_err(|e| format!("{path}: {e}"))?;
     let species = desc.species.len() as u32;
     let all: u32 = desc.species.iter().map(|s| s.count).sum();

@@ -5,23 +5,12 @@
 //! display: run it under `xvfb-run -a`, which has no vertical blank (hence the emulation).
 //!
 //! ```sh
-//! xvfb-run -a cargo run --release --example user_app -- --vsync-hz 20 --target-ms 45
+//! xvfb-run -a cargo run --release -p sherwood-lab -- user-app --vsync-hz 20 --target-ms 45
 //! ```
 //!
-//! Started without cargo, it needs `BEVY_ASSET_ROOT` set to the crate's directory (Bevy
-//! looks for `assets/` there).
-//!
-//! Flags: `--vsync-hz H` (emulate a display refreshing H times a second; default none),
-//! `--target-ms T` (default 50), `--mode tclod|tc|static|unlimited` (default tclod),
-//! `--frames N` measured frames (default 300), `--warmup N` (default 100), `--width W`
-//! `--height H` (default 960×540), `--msaa 1|2|4|8` (default 4, Bevy's), `--props` (the
-//! `gltf_props` example's 40 glTF rocks with `_LOD` levels in front of the forest),
-//! `--step-ms S` (S ms of game logic in `Update` from a third of the frames to two
-//! thirds), `--spawn-spheres N` (N PBR spheres of radius 0.5 spawned a third of the way
-//! through); the
-//! line reports the frames over 1.1 × target among the 20 after each event; `--trace`
-//! prints a line per frame around each event.
-//! Prints one `user_app ...` line.
+//! Its assets are the crate's (`assets/`), however the binary is started. Prints one
+//! `user_app ...` line; it reports the frames over 1.1 × target among the 20 after each
+//! event (`--step-ms`, `--spawn-spheres`).
 
 use bevy::prelude::*;
 use bevy::window::WindowResolution;
@@ -29,77 +18,71 @@ use bevy_sherwood::cost::CostModel;
 use bevy_sherwood::display as deadline;
 use bevy_sherwood::prelude::*;
 
-#[derive(Resource, Clone, Debug)]
-struct Options {
+use crate::forest::Mode;
+
+/// The user-app harness's command line.
+#[derive(clap::Args, Resource, Clone, Debug)]
+pub struct Args {
+    /// Emulate a display refreshing H times a second (default: none).
+    #[arg(long, value_name = "H", value_parser = positive)]
     vsync_hz: Option<f32>,
+    /// Target frame time, ms.
+    #[arg(long, default_value_t = 50.0, value_parser = positive)]
     target_ms: f32,
-    mode: LodMode,
+    /// The level-of-detail mode.
+    #[arg(long, value_enum, default_value_t = Mode::Tclod)]
+    mode: Mode,
+    /// Measured frames.
+    #[arg(long, default_value_t = 300, value_parser = at_least_one)]
     frames: usize,
+    /// Frames before the measurement.
+    #[arg(long, default_value_t = 100)]
     warmup: usize,
+    /// Window width.
+    #[arg(long, default_value_t = 960, value_parser = clap::value_parser!(u32).range(1..))]
     width: u32,
+    /// Window height.
+    #[arg(long, default_value_t = 540, value_parser = clap::value_parser!(u32).range(1..))]
     height: u32,
-    /// `--msaa N`: the camera's multisampling (Bevy's default: 4).
+    /// The camera's multisampling: 1, 2, 4 or 8 samples (Bevy's default: 4).
+    #[arg(long, default_value_t = 4, value_parser = msaa_samples)]
     msaa: u32,
-    /// `--props`: the 40 glTF rocks with `_LOD` levels of the `gltf_props` example.
+    /// The 40 glTF rocks with `_LOD` levels of the `gltf_props` example in front of the
+    /// forest.
+    #[arg(long)]
     props: bool,
-    /// `--step-ms S`: game logic (a busy `Update` system) of S ms from a third of the
-    /// measured frames to two thirds.
+    /// Game logic (a busy `Update` system) of S ms from a third of the measured frames to
+    /// two thirds.
+    #[arg(long, default_value_t = 0.0)]
     step_ms: f32,
-    /// `--spawn-spheres N`: N PBR spheres spawned in front of the camera a third of the
-    /// way through.
+    /// N PBR spheres spawned in front of the camera a third of the way through.
+    #[arg(long, default_value_t = 0)]
     spawn_spheres: u32,
-    /// `--trace`: a line per frame around each event (the period, this frame's
-    /// prediction, the latest measured frame's logic, render and prediction).
+    /// A line per frame around each event (the period, this frame's prediction, the
+    /// latest measured frame's logic, render and prediction).
+    #[arg(long)]
     trace: bool,
 }
 
-fn parse(args: &[String]) -> Result<Options, String> {
-    let mut o = Options {
-        vsync_hz: None,
-        target_ms: 50.0,
-        mode: LodMode::Tclod,
-        frames: 300,
-        warmup: 100,
-        width: 960,
-        height: 540,
-        msaa: 4,
-        props: false,
-        step_ms: 0.0,
-        spawn_spheres: 0,
-        trace: false,
-    };
-    let mut it = args.iter();
-    while let Some(flag) = it.next() {
-        let mut value = || it.next().ok_or(format!("{flag} needs a value"));
-        let number = |v: &String| v.parse::<f32>().map_err(|_| format!("{flag}: `{v}`"));
-        match flag.as_str() {
-            "--vsync-hz" => o.vsync_hz = Some(number(value()?)?),
-            "--target-ms" => o.target_ms = number(value()?)?,
-            "--frames" => o.frames = number(value()?)? as usize,
-            "--warmup" => o.warmup = number(value()?)? as usize,
-            "--width" => o.width = number(value()?)? as u32,
-            "--height" => o.height = number(value()?)? as u32,
-            "--msaa" => o.msaa = number(value()?)? as u32,
-            "--props" => o.props = true,
-            "--step-ms" => o.step_ms = number(value()?)?,
-            "--spawn-spheres" => o.spawn_spheres = number(value()?)? as u32,
-            "--trace" => o.trace = true,
-            "--mode" => {
-                o.mode = match value()?.as_str() {
-                    "tclod" => LodMode::Tclod,
-                    "tc" => LodMode::Tc,
-                    "static" => LodMode::Static,
-                    "unlimited" => LodMode::Unlimited,
-                    other => return Err(format!("--mode: unknown {other}")),
-                }
-            }
-            other => return Err(format!("unknown flag {other}")),
-        }
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(format!("{text:?} is not a positive whole number")),
     }
-    if o.vsync_hz.is_some_and(|hz| !(hz > 0.0 && hz.is_finite())) || o.target_ms <= 0.0 {
-        return Err("--vsync-hz and --target-ms must be positive".into());
+}
+
+fn msaa_samples(text: &str) -> Result<u32, String> {
+    match text.parse::<u32>() {
+        Ok(n @ (1 | 2 | 4 | 8)) => Ok(n),
+        _ => Err(format!("{text:?}: the samples are 1, 2, 4 or 8")),
     }
-    Ok(o)
+}
+
+fn positive(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("{text:?} is not a positive number")),
+    }
 }
 
 /// What each measured frame looked like to the player.
@@ -118,29 +101,28 @@ struct Measured {
     missed: usize,
 }
 
-fn main() -> AppExit {
-    let options = match parse(&std::env::args().skip(1).collect::<Vec<_>>()) {
-        Ok(o) => o,
-        Err(e) => {
-            eprintln!("user_app: {e}");
-            return AppExit::error();
-        }
-    };
+/// Runs the user-app harness.
+pub fn run(options: Args) -> AppExit {
     let window = Window {
         resolution: WindowResolution::new(options.width, options.height),
         ..default()
     };
     let mut app = App::new();
     app.add_plugins((
-        DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(window),
-            ..default()
-        }),
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: Some(window),
+                ..default()
+            })
+            .set(AssetPlugin {
+                file_path: crate::assets::root().to_string_lossy().into_owned(),
+                ..default()
+            }),
         SherwoodPlugins,
     ))
     .insert_resource(FrameBudget {
         target_ms: options.target_ms,
-        mode: options.mode,
+        mode: options.mode.lod(),
         ..default()
     })
     .insert_resource(WindSettings {
@@ -157,7 +139,7 @@ fn main() -> AppExit {
     app.insert_resource(options).run()
 }
 
-fn setup(mut commands: Commands, server: Res<AssetServer>, options: Res<Options>) {
+fn setup(mut commands: Commands, server: Res<AssetServer>, options: Res<Args>) {
     commands.spawn(Forest(server.load("forests/default.ecosystem.ron")));
     if options.props {
         commands.spawn((
@@ -184,11 +166,11 @@ fn setup(mut commands: Commands, server: Res<AssetServer>, options: Res<Options>
 }
 
 /// The measured frames at which the events start and (the logic step) end.
-fn events(options: &Options) -> (usize, usize) {
+fn events(options: &Args) -> (usize, usize) {
     (options.frames / 3, 2 * options.frames / 3)
 }
 
-fn game_logic(options: Res<Options>, measured: Res<Measured>) {
+fn game_logic(options: Res<Args>, measured: Res<Measured>) {
     let (start, end) = events(&options);
     let frame = measured.periods.len();
     if options.step_ms > 0.0 && (start..end).contains(&frame) {
@@ -201,7 +183,7 @@ fn game_logic(options: Res<Options>, measured: Res<Measured>) {
 
 fn spawn_spheres(
     mut commands: Commands,
-    options: Res<Options>,
+    options: Res<Args>,
     measured: Res<Measured>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
@@ -228,7 +210,7 @@ fn spawn_spheres(
 }
 
 fn measure(
-    options: Res<Options>,
+    options: Res<Args>,
     time: Res<Time<Real>>,
     lod: Res<LodDiagnostics>,
     model: Res<CostModel>,

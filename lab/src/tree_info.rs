@@ -1,7 +1,7 @@
 //! Inspects a tree file: what the analysis made of it.
 //!
 //! ```sh
-//! cargo run --release --example tree_info -- FILE [--rings OUT.csv] [OPTIONS]
+//! cargo run --release -p sherwood-lab -- tree-info FILE [--rings OUT.csv] [OPTIONS]
 //! ```
 //!
 //! FILE is a glTF tree (`.glb`, `.gltf`), a model (`.tree.ron`, `.tree.bin`) or a species
@@ -20,82 +20,67 @@ use bevy_sherwood::tree::{
     import_gltf,
 };
 
-const HELP: &str = "\
-tree_info FILE [--rings OUT.csv] [--ground Y] [--weld-tolerance T] [--leaf-keywords A,B,...]
-
-Loads a tree file and prints what the analysis found: rings, segments, leaves, leaf
-groups, the depth of the hierarchy, and warnings. Exits with status 1 and the analysis
-error when the file is not a tree, 2 on bad arguments.
-
-FILE               a glTF tree (.glb or .gltf, buffers embedded or beside it), a model
-                   (.tree.ron, .tree.bin), or a species (.species.ron: generated, then
-                   analysed)
---rings OUT.csv    write every ring as CSV with the header
-                   ring,parent,x,y,z,radius,vertices
-                   ring: its index; parent: its parent's index, empty for a root;
-                   x,y,z: its centre and radius: its mean distance from the centre, in
-                   the file's own space and units (node transforms applied);
-                   vertices: the ring's distinct vertices (seam duplicates welded, so
-                   an EZ-Tree ring of S segments has S; a pointed tip has 1)
---ground Y         glTF and species: the ground height; open ends at or below it are
-                   root rings (default 0)
---weld-tolerance T glTF and species: vertices closer than T × the model's diagonal are
-                   one vertex (default 1e-5)
---leaf-keywords L  glTF: comma-separated; a primitive whose node, mesh or material
-                   name contains one is leaves (default leaf,leaves,foliage,needle)
-";
-
-#[derive(Debug)]
-struct Args {
+/// The tree-info tool's command line.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A glTF tree (.glb or .gltf, buffers embedded or beside it), a model (.tree.ron,
+    /// .tree.bin), or a species (.species.ron: generated, then analysed).
     file: PathBuf,
+    /// Write every ring as CSV with the header `ring,parent,x,y,z,radius,vertices`
+    /// (ring: its index; parent: its parent's index, empty for a root; x,y,z: its centre
+    /// and radius: its mean distance from the centre, in the file's own space and units,
+    /// node transforms applied; vertices: the ring's distinct vertices, seam duplicates
+    /// welded, so an EZ-Tree ring of S segments has S and a pointed tip has 1).
+    #[arg(long, value_name = "OUT.csv")]
     rings: Option<PathBuf>,
-    settings: GltfTreeSettings,
+    /// glTF and species: the ground height; open ends at or below it are root rings
+    /// (default 0).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
+    ground: Option<f32>,
+    /// glTF and species: vertices closer than T × the model's diagonal are one vertex
+    /// (default 1e-6).
+    #[arg(long, value_parser = non_negative)]
+    weld_tolerance: Option<f32>,
+    /// glTF: a primitive whose node, mesh or material name contains one of these is
+    /// leaves (comma-separated; default leaf,leaves,foliage,needle).
+    #[arg(long, value_delimiter = ',')]
+    leaf_keywords: Option<Vec<String>>,
 }
 
-fn parse_args(args: &[String]) -> Result<Args, String> {
-    let mut file = None;
-    let mut rings = None;
-    let mut settings = GltfTreeSettings::default();
-    let mut it = args.iter();
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| {
-            it.next()
-                .cloned()
-                .ok_or_else(|| format!("{name} needs a value"))
-        };
-        let number = |name: &str, text: String| {
-            text.parse::<f32>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("{name}: {text:?} is not a finite number"))
-        };
-        match arg.as_str() {
-            "--help" | "-h" => return Err(String::new()),
-            "--rings" => rings = Some(PathBuf::from(value("--rings")?)),
-            "--ground" => settings.analysis.ground = number("--ground", value("--ground")?)?,
-            "--weld-tolerance" => {
-                let t = number("--weld-tolerance", value("--weld-tolerance")?)?;
-                if t < 0.0 {
-                    return Err("--weld-tolerance must not be negative".into());
-                }
-                settings.analysis.weld_tolerance = t;
-            }
-            "--leaf-keywords" => {
-                settings.leaf_keywords = value("--leaf-keywords")?
-                    .split(',')
-                    .map(|k| k.trim().to_owned())
-                    .filter(|k| !k.is_empty())
-                    .collect();
-            }
-            flag if flag.starts_with("--") => return Err(format!("unknown option {flag}")),
-            path if file.is_none() => file = Some(PathBuf::from(path)),
-            extra => return Err(format!("unexpected argument {extra:?}")),
+impl Args {
+    fn settings(&self) -> GltfTreeSettings {
+        let mut settings = GltfTreeSettings::default();
+        if let Some(ground) = self.ground {
+            settings.analysis.ground = ground;
         }
+        if let Some(tolerance) = self.weld_tolerance {
+            settings.analysis.weld_tolerance = tolerance;
+        }
+        if let Some(keywords) = &self.leaf_keywords {
+            settings.leaf_keywords = keywords
+                .iter()
+                .map(|k| k.trim().to_owned())
+                .filter(|k| !k.is_empty())
+                .collect();
+        }
+        settings
     }
-    Ok(Args {
-        file: file.ok_or("no FILE given")?,
-        rings,
-        settings,
+}
+
+fn finite(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("{text:?} is not a finite number")),
+    }
+}
+
+fn non_negative(text: &str) -> Result<f32, String> {
+    finite(text).and_then(|v| {
+        if v >= 0.0 {
+            Ok(v)
+        } else {
+            Err("must not be negative".into())
+        }
     })
 }
 
@@ -257,20 +242,9 @@ fn rings_csv(model: &TreeModel) -> String {
     out
 }
 
-fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let args = match parse_args(&args) {
-        Ok(args) => args,
-        Err(e) if e.is_empty() => {
-            print!("{HELP}");
-            return ExitCode::SUCCESS;
-        }
-        Err(e) => {
-            eprintln!("tree_info: {e}\n\n{HELP}");
-            return ExitCode::from(2);
-        }
-    };
-    let (model, warnings) = match load(&args.file, &args.settings) {
+/// Runs the tree-info tool.
+pub fn run(args: Args) -> ExitCode {
+    let (model, warnings) = match load(&args.file, &args.settings()) {
         Ok(loaded) => loaded,
         Err(e) => {
             eprintln!("{}: {e}", args.file.display());
@@ -295,8 +269,7 @@ mod tests {
     use super::*;
 
     fn model() -> TreeModel {
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/trees/eztree/aspen_small.tree.glb");
+        let path = crate::assets::root().join("trees/eztree/aspen_small.tree.glb");
         load(&path, &GltfTreeSettings::default()).unwrap().0
     }
 
@@ -336,7 +309,17 @@ mod tests {
 
     #[test]
     fn options_and_bad_arguments() {
-        let args = |a: &[&str]| parse_args(&a.iter().map(ToString::to_string).collect::<Vec<_>>());
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            args: Args,
+        }
+        let args = |a: &[&str]| {
+            Cli::try_parse_from(std::iter::once("tree-info").chain(a.iter().copied()))
+                .map(|c| c.args)
+                .map_err(|e| e.to_string())
+        };
         let parsed = args(&[
             "t.glb",
             "--ground",
@@ -347,12 +330,24 @@ mod tests {
             "o.csv",
         ])
         .unwrap();
-        assert_eq!(parsed.settings.analysis.ground, -0.5);
-        assert_eq!(parsed.settings.leaf_keywords, ["frond", "leaf"]);
+        let settings = parsed.settings();
+        assert_eq!(settings.analysis.ground, -0.5);
+        assert_eq!(settings.leaf_keywords, ["frond", "leaf"]);
         assert_eq!(parsed.rings.as_deref(), Some(Path::new("o.csv")));
-        assert!(args(&[]).unwrap_err().contains("no FILE"));
+        let defaults = args(&["t.glb"]).unwrap().settings();
+        assert_eq!(
+            defaults.leaf_keywords,
+            GltfTreeSettings::default().leaf_keywords
+        );
+        assert_eq!(defaults.analysis, GltfTreeSettings::default().analysis);
+        assert!(args(&[]).unwrap_err().contains("FILE"));
         assert!(
             args(&["t.glb", "--ground", "x"])
+                .unwrap_err()
+                .contains("--ground")
+        );
+        assert!(
+            args(&["t.glb", "--ground", "inf"])
                 .unwrap_err()
                 .contains("--ground")
         );

@@ -2,9 +2,11 @@
 //! one PNG per species, for the docs and for looking at what the generator makes.
 //!
 //! ```sh
-//! cargo run --release --example species_gallery -- docs
+//! cargo run --release -p sherwood-lab -- gallery docs
 //! # without a display: xvfb-run -a -s "-screen 0 1280x1024x24" cargo run ...
 //! ```
+
+use std::path::PathBuf;
 
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Capturing, Screenshot, save_to_disk};
@@ -28,22 +30,38 @@ struct Gallery {
 #[derive(Component)]
 struct Shown;
 
-fn main() -> AppExit {
-    let out_dir = std::env::args().nth(1).unwrap_or_else(|| "docs".into());
+/// The gallery's command line.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The folder the pictures go to (`species-<name>.png`).
+    #[arg(default_value = "docs")]
+    out_dir: PathBuf,
+}
+
+/// Renders the species and saves their pictures.
+pub fn run(args: Args) -> AppExit {
+    let out_dir = args.out_dir.display().to_string();
     if let Err(e) = std::fs::create_dir_all(&out_dir) {
-        eprintln!("cannot create {out_dir}: {e}");
-        std::process::exit(2);
+        eprintln!("gallery: cannot create {out_dir}: {e}");
+        return AppExit::error();
     }
     App::new()
-        .add_plugins(DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(Window {
-                title: "bevy_sherwood species".into(),
-                resolution: WindowResolution::new(640, 800),
-                present_mode: PresentMode::AutoNoVsync,
-                ..default()
-            }),
-            ..default()
-        }))
+        .add_plugins(
+            DefaultPlugins
+                .set(WindowPlugin {
+                    primary_window: Some(Window {
+                        title: "bevy_sherwood species".into(),
+                        resolution: WindowResolution::new(640, 800),
+                        present_mode: PresentMode::AutoNoVsync,
+                        ..default()
+                    }),
+                    ..default()
+                })
+                .set(AssetPlugin {
+                    file_path: crate::assets::root().to_string_lossy().into_owned(),
+                    ..default()
+                }),
+        )
         .add_plugins(SherwoodPlugins)
         .insert_resource(ClearColor(Color::srgb(0.62, 0.76, 0.92)))
         .insert_resource(Gallery {

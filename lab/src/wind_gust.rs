@@ -3,10 +3,10 @@
 //! do not depend on how fast this machine renders) and writes the frames side by side.
 //!
 //! ```sh
-//! cargo run --release --example wind_gust -- docs/wind-gust.png
+//! cargo run --release -p sherwood-lab -- wind-gust docs/wind-gust.png
 //! ```
 
-use bevy_sherwood::testing as windowless;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -17,6 +17,7 @@ use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::time::TimeUpdateStrategy;
 use bevy_sherwood::ecosystem::{EcosystemDesc, ForestTerrain};
 use bevy_sherwood::prelude::*;
+use bevy_sherwood::testing as windowless;
 use bevy_sherwood::wind::{GustDesc, SpringDesc, SpringSet, WindDesc, WindSettings};
 
 const WIDTH: u32 = 480;
@@ -27,10 +28,17 @@ const FRAMES: u32 = 6;
 const STEP_SECONDS: f32 = 0.3;
 const FRAME_SECONDS: f32 = 1.0 / 30.0;
 
-fn main() -> AppExit {
-    let out = std::env::args()
-        .nth(1)
-        .unwrap_or_else(|| "wind-gust.png".into());
+/// The gust sheet's command line.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The contact sheet to write.
+    #[arg(default_value = "wind-gust.png")]
+    out: PathBuf,
+}
+
+/// Renders the gust and writes the sheet.
+pub fn run(args: Args) -> AppExit {
+    let out = args.out.display().to_string();
     let mut app = App::new();
     app.add_plugins((
         windowless::windowless_plugins(
@@ -103,11 +111,8 @@ fn main() -> AppExit {
 }
 
 fn setup(world: &mut World) -> Handle<Image> {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/forests/default.ecosystem.ron"
-    ))
-    .expect("the default forest ships with the crate");
+    let text = std::fs::read_to_string(crate::assets::root().join("forests/default.ecosystem.ron"))
+        .expect("the default forest ships with the crate");
     let mut desc = EcosystemDesc::from_ron_str(&text).expect("the default forest parses");
     desc.set_total_trees(60)
         .expect("the default forest has trees to scale");
