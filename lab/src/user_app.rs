@@ -24,10 +24,10 @@ use crate::forest::Mode;
 #[derive(clap::Args, Resource, Clone, Debug)]
 pub struct Args {
     /// Emulate a display refreshing H times a second (default: none).
-    #[arg(long, value_name = "H", value_parser = positive)]
+    #[arg(long, value_name = "H", value_parser = positive, allow_negative_numbers = true)]
     vsync_hz: Option<f32>,
     /// Target frame time, ms.
-    #[arg(long, default_value_t = 50.0, value_parser = positive)]
+    #[arg(long, default_value_t = 50.0, value_parser = positive, allow_negative_numbers = true)]
     target_ms: f32,
     /// The level-of-detail mode.
     #[arg(long, value_enum, default_value_t = Mode::Tclod)]

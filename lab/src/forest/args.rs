@@ -49,7 +49,7 @@ pub struct Args {
     #[arg(long, default_value_t = 60)]
     pub warmup: u32,
     /// Target frame time, ms.
-    #[arg(long, default_value_t = 100.0, value_parser = positive)]
+    #[arg(long, default_value_t = 100.0, value_parser = positive, allow_negative_numbers = true)]
     pub target_ms: f32,
     /// What the target promises.
     #[arg(long, value_enum, default_value_t = Goal::Tail)]
@@ -57,7 +57,7 @@ pub struct Args {
     /// Budget this share of the target (0 < F ≤ 1) while the statistics count against
     /// the target itself: a fixed-headroom baseline (Unreal's dynamic resolution aims at
     /// 0.9).
-    #[arg(long, default_value_t = 1.0, value_parser = share)]
+    #[arg(long, default_value_t = 1.0, value_parser = share, allow_negative_numbers = true)]
     pub headroom: f32,
     /// The level-of-detail mode.
     #[arg(long, value_enum, default_value_t = Mode::Tclod)]
@@ -88,7 +88,7 @@ pub struct Args {
     pub calibration: Option<PathBuf>,
     /// Multiply every cost and logic time of the calibration by F (to see the online
     /// learning correct a calibration that is off).
-    #[arg(long, value_parser = positive)]
+    #[arg(long, value_parser = positive, allow_negative_numbers = true)]
     pub scale_calibration: Option<f32>,
     /// Measure this machine's rendering and logic costs over the scene and write a
     /// calibration, then exit.
@@ -101,7 +101,7 @@ pub struct Args {
     /// Emulate a display that waits for its vertical blank H times a second (for Xvfb
     /// and headless runs, which have none); the window then presents with Bevy's default
     /// `PresentMode::AutoVsync`, as an app does.
-    #[arg(long, value_name = "H", value_parser = positive)]
+    #[arg(long, value_name = "H", value_parser = positive, allow_negative_numbers = true)]
     pub vsync_hz: Option<f32>,
     /// Window or image width.
     #[arg(long, default_value_t = 960, value_parser = clap::value_parser!(u32).range(1..))]
@@ -441,7 +441,13 @@ mod tests {
             let e = parse(flags)
                 .err()
                 .unwrap_or_else(|| panic!("{flags:?} accepted"));
-            assert_eq!(e.kind(), ErrorKind::ValueValidation, "{flags:?}: {e}");
+            assert!(
+                matches!(
+                    e.kind(),
+                    ErrorKind::ValueValidation | ErrorKind::InvalidValue
+                ),
+                "{flags:?}: {e}"
+            );
             assert!(e.to_string().contains(flag), "{flags:?}: {e}");
         }
     }
