@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # What the app's own doings do to the frame-time promise, in an app as a user writes it
-# (examples/user_app.rs: DefaultPlugins, Bevy's default present mode and multisampling,
+# (`sherwood-lab user-app`, lab/src/user_app.rs: DefaultPlugins, Bevy's default present mode and multisampling,
 # the default forest, a still camera), windowed under Xvfb:
 #   - a +STEP_MS and then a −STEP_MS step of game logic (a busy `Update` system),
 #   - SPHERES PBR spheres spawned at once,
@@ -33,14 +33,14 @@ mkdir -p "$OUT"
 target_dir=${CARGO_TARGET_DIR:-target}
 
 # shellcheck disable=SC2086
-cargo build --release ${CARGO_FLAGS:-} --example user_app
-user_app="$target_dir/release/examples/user_app"
+cargo build --release ${CARGO_FLAGS:-} --bin sherwood-lab
+user_app=("$target_dir/release/sherwood-lab" user-app)
 export BEVY_ASSET_ROOT=$PWD
 run() {
     local name=$1
     shift
     # shellcheck disable=SC2086
-    xvfb-run -a -s "-screen 0 1280x720x24" "$user_app" $EXTRA --frames "$FRAMES" "$@" \
+    xvfb-run -a -s "-screen 0 1280x720x24" "${user_app[@]}" $EXTRA --frames "$FRAMES" "$@" \
         | sed "s/^user_app /user_app run=$name /" | tee -a "$OUT/$name.txt"
 }
 

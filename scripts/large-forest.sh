@@ -10,7 +10,7 @@
 # funkhouser), PATHS (linear zigzag), SHOT (the measured frame screenshotted, 600) and
 # HOLD_FRAMES (400). Resumable like scripts/reproduce.sh: results/large/<name>.csv and
 # .summary are written when a run completes; delete results/large to start over. Then
-# `cargo run --release --example results -- --large results/large docs` writes
+# `cargo run --release -p sherwood-lab -- results --large results/large docs` writes
 # docs/large-forest.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -25,8 +25,9 @@ RAW=results/large
 mkdir -p "$RAW" docs/large-forest
 target_dir=${CARGO_TARGET_DIR:-target}
 
-cargo build --release --example forest
-forest="$target_dir/release/examples/forest"
+cargo build --release --bin sherwood-lab
+lab="$target_dir/release/sherwood-lab"
+forest=("$lab" forest)
 source "$(dirname "$0")/lib/runs.sh"
 
 ecosystem="forests/trees-$TREES.ecosystem.ron"

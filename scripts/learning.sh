@@ -5,7 +5,7 @@
 # at the linear path's busiest frame, full detail and the static LOD), both paths at
 # their full length (linear 1100, zigzag 1700 frames) unlimited, then TC and TCLOD at
 # FRACTIONS of the unlimited peak with each calibration scale in SCALES, and at 3/4 of
-# the peak with the shipped calibration; then docs/cost-model.md (examples/cost_report.rs).
+# the peak with the shipped calibration; then docs/cost-model.md (`sherwood-lab cost-report`, lab/src/cost_report.rs).
 #
 #   scripts/learning.sh             # about an hour and a half on a 2-core software renderer
 #
@@ -24,8 +24,9 @@ RAW=${RAW:-results/learning}
 mkdir -p "$RAW"
 target_dir=${CARGO_TARGET_DIR:-target}
 
-cargo build --release --example forest --example cost_report
-forest="$target_dir/release/examples/forest"
+cargo build --release --bin sherwood-lab
+lab="$target_dir/release/sherwood-lab"
+forest=("$lab" forest)
 
 source "$(dirname "$0")/lib/runs.sh"
 # Frame 0 is the first frame drawn: the learning is recorded from its start.
@@ -67,4 +68,4 @@ for path in $PATHS; do
     done
 done
 
-"$target_dir/release/examples/cost_report" "$RAW" docs
+"$lab" cost-report "$RAW" docs

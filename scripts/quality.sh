@@ -4,7 +4,7 @@
 # then each configuration at 1/8, 1/4 and 1/2 of that peak — TCLOD and TC with Robin Hood,
 # TCLOD with Funkhouser–Séquin and with the hierarchical strategy (group impostors), the
 # triangle budget — and the static LOD at its own time; every run twice, once as it looks
-# and once in tree-ID colours. The quality example compares each picture with the
+# and once in tree-ID colours. The quality tool compares each picture with the
 # full-detail one of the same frame (SSIM, and per tree the share of its full-detail
 # pixels still covered); the table goes to docs/quality.md with a contact sheet
 # (docs/quality-sheet.png).
@@ -15,7 +15,7 @@
 # place. Resumable: a run whose pictures exist is skipped; delete results/quality to
 # start over. Override with FORESTS (trees per forest), PATHS, FRAMES (comma-separated
 # measured frames), FRACTIONS, CONFIGS, OUT (the runs' directory), DOCS (where the
-# table and the sheet go) and FOREST (the forest example's binary, to compare builds).
+# table and the sheet go) and FOREST (the forest tool's command, to compare builds).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,14 +28,16 @@ OUT=${OUT:-results/quality}
 DOCS=${DOCS:-docs}
 mkdir -p "$OUT" "$DOCS"
 target_dir=${CARGO_TARGET_DIR:-target}
-cargo build --release --example forest --example quality
-forest=${FOREST:-"$target_dir/release/examples/forest"}
-quality="$target_dir/release/examples/quality"
+cargo build --release --bin sherwood-lab
+lab="$target_dir/release/sherwood-lab"
+# shellcheck disable=SC2206 # FOREST is a command line, split into words on purpose
+forest=(${FOREST:-"$lab" forest})
+quality=("$lab" quality)
 last=$(tr ',' '\n' <<< "$FRAMES" | sort -n | tail -1)
 
 # `shoot NAME FLAGS...`: the pictures (NAME-K.png, NAME-id-K.png) and the record
 # (NAME.csv) of one configuration at the frames (run a few frames past the last, so that
-# its picture is read back before the example exits).
+# its picture is read back before the tool exits).
 shoot() {
     local name=$1
     shift
@@ -43,12 +45,12 @@ shoot() {
         return
     fi
     echo "== $name: $*"
-    "$forest" --headless --no-wind --no-hud --frames $((last + 10)) --at-frame "$FRAMES" \
+    "${forest[@]}" --headless --no-wind --no-hud --frames $((last + 10)) --at-frame "$FRAMES" \
         --screenshot "$OUT/$name-id.png" --id-colors "$@" > /dev/null 2>&1
-    "$forest" --headless --no-wind --no-hud --frames $((last + 10)) --at-frame "$FRAMES" \
+    "${forest[@]}" --headless --no-wind --no-hud --frames $((last + 10)) --at-frame "$FRAMES" \
         --screenshot "$OUT/$name.png" --record "$OUT/$name.csv.part" "$@" > /dev/null 2>&1
     if [[ "$FRAMES" != *,* ]]; then
-        # One frame: the example names the pictures without it.
+        # One frame: the tool names the pictures without it.
         mv "$OUT/$name.png" "$OUT/$name-$FRAMES.png"
         mv "$OUT/$name-id.png" "$OUT/$name-id-$FRAMES.png"
     fi
@@ -109,7 +111,7 @@ for trees in $FORESTS; do
                     --strategy "$strategy" --target-ms "$target"
             fi
             for k in ${FRAMES//,/ }; do
-                line=$("$quality" "$OUT/$base-unlimited-$k.png" "$OUT/$base-unlimited-id-$k.png" \
+                line=$("${quality[@]}" compare "$OUT/$base-unlimited-$k.png" "$OUT/$base-unlimited-id-$k.png" \
                     "$OUT/$name-$k.png" "$OUT/$name-id-$k.png")
                 declare -A q=()
                 for pair in $line; do q[${pair%%=*}]=${pair#*=}; done
@@ -138,7 +140,7 @@ for config in $CONFIGS; do
     sheet+=("$OUT/$base-$mode-$strategy-$target-$last.png")
     labels="$labels, $mode $strategy"
 done
-"$quality" --sheet "$DOCS/quality-sheet.png" 3 "${sheet[@]}"
+"${quality[@]}" sheet "$DOCS/quality-sheet.png" 3 "${sheet[@]}"
 {
     echo
     echo "## Contact sheet"

@@ -5,7 +5,7 @@
 # unlimited run, then each mode (TC, TCLOD) with each strategy at targets of 1/16 to 1/2
 # of the unlimited peak, plus TCLOD Robin Hood without online correction at the middle
 # target; every timed run scores its hand-out against the LP bound (--benefit). Then
-# docs/results.md and the plots (examples/results.rs).
+# docs/results.md and the plots (`sherwood-lab results`, lab/src/results.rs).
 #
 #   scripts/reproduce.sh             # the full grid (a day on a 2-core software renderer)
 #   scripts/reproduce.sh --reduced   # 600 trees, one path, 1/8 1/4 1/2, paths of 300 frames
@@ -39,8 +39,9 @@ RAW=results/raw
 mkdir -p "$RAW"
 target_dir=${CARGO_TARGET_DIR:-target}
 
-cargo build --release --example forest --example results
-forest="$target_dir/release/examples/forest"
+cargo build --release --bin sherwood-lab
+lab="$target_dir/release/sherwood-lab"
+forest=("$lab" forest)
 
 frames_flag=()
 if [[ -n "$PATH_FRAMES" ]]; then
@@ -92,4 +93,4 @@ for size in $SIZES; do
     done
 done
 
-"$target_dir/release/examples/results" "$RAW" docs
+"$lab" results "$RAW" docs

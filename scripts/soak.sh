@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The soak: a long headless run (examples/soak.rs: a 100-tree forest at a 10 ms target, a
+# The soak: a long headless run (`sherwood-lab soak`, lab/src/soak.rs: a 100-tree forest at a 10 ms target, a
 # moving camera, wind, trees spawned and despawned every 100 frames, the strategy changed
 # every 5 000 frames), reporting resident memory and the learned costs every 1 000 frames
 # and every error or warning logged.
@@ -18,8 +18,8 @@ mkdir -p "$OUT"
 target_dir=${CARGO_TARGET_DIR:-target}
 
 # shellcheck disable=SC2086
-cargo build --release ${CARGO_FLAGS:-} --example soak
-"$target_dir/release/examples/soak" --frames "$FRAMES" --trees "$TREES" --target-ms "$TARGET_MS" \
+cargo build --release ${CARGO_FLAGS:-} --bin sherwood-lab
+"$target_dir/release/sherwood-lab" soak --frames "$FRAMES" --trees "$TREES" --target-ms "$TARGET_MS" \
     > "$OUT/soak.txt" 2> "$OUT/soak.log"
 grep '^soak ' "$OUT/soak.txt" | awk '
     { for (i = 2; i <= NF; i++) { split($i, kv, "="); v[kv[1]] = kv[2] } }

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The frame-time promise with vsync on and off, in an app as a user writes it
-# (examples/user_app.rs: DefaultPlugins, Bevy's default present mode, the default forest,
-# a still camera) and along the forest example's paths. Runs under Xvfb, which has no
+# (`sherwood-lab user-app`, lab/src/user_app.rs: DefaultPlugins, Bevy's default present mode, the default forest,
+# a still camera) and along the forest tool's paths. Runs under Xvfb, which has no
 # vertical blank: EmulatedVsyncPlugin supplies one (--vsync-hz).
 #
 #   scripts/vsync.sh                 # HZ=20: targets 0.9 and 1.0 periods, 3 rounds
@@ -11,8 +11,8 @@
 # vsync) is measured in every round. Results: results/vsync/*.txt, one line per run.
 # Override HZ, ROUNDS, FRAMES, TARGETS (in periods), EXTRA (more user_app flags, e.g.
 # "--msaa 1"), FOREST_FRACTIONS (the forest
-# example's targets as fractions of PEAK_MS, its unlimited peak on the zigzag path;
-# empty: skip the forest example) and FOREST_FLAGS (more forest flags, e.g.
+# tool's targets as fractions of PEAK_MS, its unlimited peak on the zigzag path;
+# empty: skip the forest tool) and FOREST_FLAGS (more forest flags, e.g.
 # "--path-frames 300").
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,9 +31,10 @@ target_dir=${CARGO_TARGET_DIR:-target}
 
 # CARGO_FLAGS: the build's flags (e.g. --all-features, to reuse a build made so).
 # shellcheck disable=SC2086
-cargo build --release ${CARGO_FLAGS:-} --example user_app --example forest
-user_app="$target_dir/release/examples/user_app"
-forest="$target_dir/release/examples/forest"
+cargo build --release ${CARGO_FLAGS:-} --bin sherwood-lab
+lab="$target_dir/release/sherwood-lab"
+user_app=("$lab" user-app)
+forest=("$lab" forest)
 period_ms=$(awk -v hz="$HZ" 'BEGIN { printf "%.3f", 1000 / hz }')
 
 # The binaries find assets/ through BEVY_ASSET_ROOT (cargo sets CARGO_MANIFEST_DIR).
@@ -45,14 +46,14 @@ windowed() {
 for round in $(seq 1 "$ROUNDS"); do
     echo "== round $round"
     # shellcheck disable=SC2086
-    windowed "$user_app" $EXTRA --mode static --target-ms "$period_ms" --frames "$FRAMES" \
+    windowed "${user_app[@]}" $EXTRA --mode static --target-ms "$period_ms" --frames "$FRAMES" \
         | tee -a "$OUT/noise.txt"
     for t in $TARGETS; do
         target=$(awk -v p="$period_ms" -v t="$t" 'BEGIN { printf "%.2f", p * t }')
         # shellcheck disable=SC2086
-        windowed "$user_app" $EXTRA --target-ms "$target" --frames "$FRAMES" | tee -a "$OUT/user_app_$t.txt"
+        windowed "${user_app[@]}" $EXTRA --target-ms "$target" --frames "$FRAMES" | tee -a "$OUT/user_app_$t.txt"
         # shellcheck disable=SC2086
-        windowed "$user_app" $EXTRA --target-ms "$target" --frames "$FRAMES" --vsync-hz "$HZ" \
+        windowed "${user_app[@]}" $EXTRA --target-ms "$target" --frames "$FRAMES" --vsync-hz "$HZ" \
             | tee -a "$OUT/user_app_$t.txt"
     done
     if [[ -n "$FOREST_FRACTIONS" ]]; then
@@ -61,7 +62,7 @@ for round in $(seq 1 "$ROUNDS"); do
             hz=$(awk -v t="$target" 'BEGIN { printf "%.3f", 1000 / t }')
             for vsync in "" "--vsync-hz $hz"; do
                 # shellcheck disable=SC2086
-                windowed "$forest" --no-hud --no-wind --path zigzag --summary $FOREST_FLAGS \
+                windowed "${forest[@]}" --no-hud --no-wind --path zigzag --summary $FOREST_FLAGS \
                     --target-ms "$target" $vsync \
                     | sed "s/^summary/forest_$f vsync=${vsync:+$hz}/" | tee -a "$OUT/forest_$f.txt"
             done

@@ -1,4 +1,4 @@
-//! Frame-time statistics of a run in the paper's terms: shared by the forest example's
+//! Frame-time statistics of a run in the paper's terms: shared by the forest tool's
 //! `--summary` line and the `results` tables, so both report the same numbers.
 
 /// Statistics of a run's measured frame times against its target.

@@ -1,4 +1,4 @@
-//! Image quality at equal time: tree-ID colours (the forest example's `--id-colors`) and
+//! Image quality at equal time: tree-ID colours (the forest tool's `--id-colors`) and
 //! what the quality example measures with them.
 
 /// Distinct values per colour channel: 64³ − 1 trees can be told apart.

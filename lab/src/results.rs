@@ -7,7 +7,7 @@
 //! cargo run --release -p sherwood-lab -- results results/raw docs
 //! ```
 //!
-//! Each run is `RAW/<trees>_<path>_<label>.csv` (the forest example's `--record`), where
+//! Each run is `RAW/<trees>_<path>_<label>.csv` (the forest tool's `--record`), where
 //! the label is `unlimited`, `hold_<fraction>` (identical frames: the noise floor) or
 //! `<mode>_<strategy>_<fraction>[_nocorr]`; `RAW/GRID` says which grid produced them.
 //!

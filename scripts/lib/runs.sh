@@ -1,5 +1,5 @@
-# Shared by the measurement scripts: `run NAME FLAGS...` runs the forest example
-# ("$forest") headless with FLAGS, recording into "$RAW/NAME.csv" and its summary line into
+# Shared by the measurement scripts: `run NAME FLAGS...` runs the lab's forest tool
+# (the command in the array "forest") headless with FLAGS, recording into "$RAW/NAME.csv" and its summary line into
 # "$RAW/NAME.summary" only once it completes; a run whose file exists is skipped, so the
 # scripts can be stopped and resumed. A run that fails is reported (and listed in
 # "$RAW/FAILED") and the script goes on; it is tried again when the script is run again.
@@ -11,7 +11,7 @@ run() {
     fi
     echo "== $name: $*"
     local status=0
-    "$forest" --headless --summary --record "$RAW/$name.csv.part" "$@" > "$RAW/$name.summary.part" || status=$?
+    "${forest[@]}" --headless --summary --record "$RAW/$name.csv.part" "$@" > "$RAW/$name.summary.part" || status=$?
     if [[ $status -ne 0 ]]; then
         echo "== $name FAILED (exit $status)" | tee -a "$RAW/FAILED"
         rm -f "$RAW/$name.csv.part" "$RAW/$name.summary.part"

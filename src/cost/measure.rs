@@ -128,7 +128,7 @@ impl FrameSample {
     }
 }
 
-/// Measured frames, for the cost model and anyone else who wants them (the forest example
+/// Measured frames, for the cost model and anyone else who wants them (the lab's forest tool
 /// records them). Producers `push` samples as they arrive; at the
 /// start of each update ([`CostSystems::Measure`](super::CostSystems::Measure)) they
 /// become [`FrameSamples::arrived`] for that update, in the order pushed.

@@ -1,7 +1,7 @@
 //! Cost models: what primitives and logic cost on this machine (paper §4, thesis §6.2).
 //!
-//! A [`Calibration`] measured once per adapter (`cargo run --release --example forest --
-//! --calibrate`) is the prior; while the app runs, [`CostPlugin`] measures every frame
+//! A [`Calibration`] measured once per adapter (`CalibrationRunPlugin` in an app, or in
+//! this repository `cargo run --release -p sherwood-lab -- forest --calibrate`) is the prior; while the app runs, [`CostPlugin`] measures every frame
 //! ([`FrameSample`]: the main world's logic, the render world's rendering and the frame
 //! time) and the [`CostModel`] learns from them what this machine costs now: the fixed
 //! part and each primitive family's cost over seconds, how fast the machine runs within
@@ -331,7 +331,8 @@ fn load_calibration(
         (_, None) => {
             warn!(
                 "cost model: no calibration for adapter `{}` in {} or the shipped ones; using the \
-                 default costs (measure one with `cargo run --release --example forest -- --calibrate`)",
+                 default costs (measure one with `CalibrationRunPlugin`, or in bevy_sherwood's \
+                 repository `cargo run --release -p sherwood-lab -- forest --calibrate`)",
                 adapter.name, APP_INDEX,
             );
             commands.trigger(CalibrationNotFound {

@@ -187,7 +187,7 @@ impl FrameBudget {
 /// Whether the Budget stage also scores its hand-out each frame, into
 /// [`LodDiagnostics::benefit`](super::LodDiagnostics::benefit) and
 /// [`benefit_bound`](super::LodDiagnostics::benefit_bound): how much of the best possible
-/// benefit the strategy reached. For evaluation (the forest example's `--record`); it
+/// benefit the strategy reached. For evaluation (the lab forest's `--record`); it
 /// searches every visible object once more at full detail, which takes about as long as
 /// the hand-out itself, and is left out of `budget_stage_ms`. Default: off.
 ///
