@@ -8,12 +8,10 @@ use bevy_sherwood::lod::StrategyKind;
 use bevy_sherwood::prelude::{FrameGoal, LodMode, ValueFunction};
 use clap::ValueEnum;
 
-/// The forest drawn with time-critical level of detail, flown with the keys or walked
-/// along one of the paper's camera paths, measured frame by frame.
-///
-/// Keys: `W A S D` move, `Q E` down/up, right mouse button + drag to look, `Shift`
-/// faster; `+`/`-` raise/lower the target frame time; `M` cycle the mode; `B` cycle the
-/// budget strategy; `N` toggle wind; `C` toggle the culling boxes; `H` toggle the HUD.
+/// The forest drawn with time-critical level of detail, walked along one of the paper's
+/// camera paths (or flown: WASD, Q/E, right mouse button to look), measured frame by
+/// frame. The settings are fixed for the run (`examples/forest.rs` changes them with
+/// keys).
 #[derive(clap::Args, Resource, Clone, Debug)]
 #[command(after_long_help = AFTER_HELP)]
 pub struct Args {

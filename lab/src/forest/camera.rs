@@ -1,10 +1,7 @@
-//! Where the camera goes: the paper's camera paths, and the keys that change the budget.
+//! Where the camera goes: the paper's camera paths.
 
 use bevy::prelude::*;
 use bevy_sherwood::ecosystem::ForestTerrain;
-use bevy_sherwood::lod::StrategyKind;
-use bevy_sherwood::prelude::*;
-use bevy_sherwood::wind::WindSettings;
 
 use super::Run;
 use super::args::{Args, CameraPath};
@@ -69,48 +66,6 @@ pub fn follow_path(
     let eye = Vec3::new(at.x, ground + 12.0, at.y);
     let target = eye + Vec3::new(heading.x, -0.12, heading.y);
     *transform = Transform::from_translation(eye).looking_at(target, Vec3::Y);
-}
-
-pub fn keys(
-    input: Res<ButtonInput<KeyCode>>,
-    mut budget: ResMut<FrameBudget>,
-    mut wind: ResMut<WindSettings>,
-    mut boxes: ResMut<CullingDebug>,
-    mut hud: ResMut<ForestHud>,
-) {
-    if input.just_pressed(KeyCode::Equal) || input.just_pressed(KeyCode::NumpadAdd) {
-        budget.target_ms *= 1.25;
-    }
-    if input.just_pressed(KeyCode::Minus) || input.just_pressed(KeyCode::NumpadSubtract) {
-        budget.target_ms /= 1.25;
-    }
-    if input.just_pressed(KeyCode::KeyM) {
-        budget.mode = match budget.mode {
-            LodMode::Tclod => LodMode::Tc,
-            LodMode::Tc => LodMode::Static,
-            LodMode::Static => LodMode::Unlimited,
-            LodMode::Unlimited => LodMode::Tclod,
-        };
-    }
-    if input.just_pressed(KeyCode::KeyB) {
-        budget.strategy = match budget.strategy {
-            StrategyKind::RobinHood => StrategyKind::FunkhouserSequin,
-            StrategyKind::FunkhouserSequin => StrategyKind::FunkhouserIncremental,
-            StrategyKind::FunkhouserIncremental => StrategyKind::TriangleBudget,
-            StrategyKind::TriangleBudget => StrategyKind::Hierarchical,
-            StrategyKind::Hierarchical => StrategyKind::RobinHood,
-        };
-        info!("strategy: {:?}", budget.strategy);
-    }
-    if input.just_pressed(KeyCode::KeyN) {
-        wind.enabled = !wind.enabled;
-    }
-    if input.just_pressed(KeyCode::KeyC) {
-        boxes.enabled = !boxes.enabled;
-    }
-    if input.just_pressed(KeyCode::KeyH) {
-        hud.visible = !hud.visible;
-    }
 }
 
 #[cfg(test)]

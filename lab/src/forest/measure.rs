@@ -364,3 +364,24 @@ fn summary(target_ms: f32, rows: &[Row], vsync: bool) -> String {
         line
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn several_screenshots_are_numbered_beside_the_file_named() {
+        let file = Path::new("/tmp/out dir/shot.png");
+        assert_eq!(
+            screenshot_file(file, 7),
+            Path::new("/tmp/out dir/shot-7.png")
+        );
+        assert_eq!(screenshot_file(Path::new("shot"), 0), Path::new("shot-0"));
+    }
+
+    #[test]
+    fn levels_are_written_best_first() {
+        assert_eq!(levels_field(&[3, 0, 12]), "3/0/12");
+        assert_eq!(levels_field(&[]), "");
+    }
+}

@@ -106,7 +106,6 @@ pub fn run(mut args: Args) -> AppExit {
                 scene::stop_when_no_species_loads,
                 measure::give_up_when_nothing_is_drawn,
                 scene::install_calibration,
-                camera::keys,
                 scene::place_boulders,
                 camera::follow_path,
                 measure::measure,

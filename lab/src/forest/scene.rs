@@ -87,11 +87,7 @@ pub fn setup(
             .looking_at(Vec3::new(size * 0.5, 0.0, size * 0.5), Vec3::Y),
     ));
     if options.path.is_none() {
-        camera.insert(FreeCamera {
-            // `M` cycles the mode.
-            keyboard_key_toggle_cursor_grab: KeyCode::KeyG,
-            ..default()
-        });
+        camera.insert(FreeCamera::default());
     }
     if options.headless {
         let mut image = Image::new_target_texture(
@@ -105,9 +101,7 @@ pub fn setup(
         camera.insert(RenderTarget::Image(image.clone().into()));
         run.image = Some(image);
     }
-    hud.footer =
-        "WASD/QE move, right drag look, G grab | +/- target  M mode  B strategy  N wind  C boxes  H hud"
-            .into();
+    hud.footer = "WASD/QE move, right drag look".into();
     hud.visible = !(options.no_hud || options.id_colors);
 }
 
