@@ -53,7 +53,7 @@ pub mod prelude {
     pub use crate::lod::ValueFunction;
     pub use crate::lod::{
         FrameBudget, FrameGoal, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin,
-        StrategyKind, TargetUnreachable, Unreachable,
+        SteadySelection, StrategyKind, TargetUnreachable, Unreachable,
     };
     #[cfg(feature = "hud")]
     pub use crate::render::{ForestHud, ForestHudPlugin};

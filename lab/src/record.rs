@@ -80,6 +80,9 @@ pub struct FrameRecord {
     pub undrawn: u32,
     /// Far trees keeping their last decision (`--far-refresh`).
     pub held_trees: u32,
+    /// 1 when the frame kept last frame's selection (a still scene,
+    /// `FrameBudget::steady`).
+    pub selection_kept: u8,
     /// Group impostors drawn (hierarchical strategy).
     pub impostors_drawn: u32,
     /// Visible trees drawn on their own (not by a group).
@@ -237,6 +240,7 @@ pub(crate) mod tests {
                 truncated: 0,
                 undrawn: 0,
                 held_trees: 0,
+                selection_kept: 0,
                 impostors_drawn: 0,
                 trees_drawn: 100,
                 wasted_ms: 0.1,

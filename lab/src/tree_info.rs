@@ -24,7 +24,8 @@ use bevy_sherwood::tree::{
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// A glTF tree (.glb or .gltf, buffers embedded or beside it), a model (.tree.ron,
-    /// .tree.bin), or a species (.species.ron: generated, then analysed).
+    /// .tree.bin), or a species (.species.ron: generated, then analysed): a path, or one
+    /// under `assets/`.
     file: PathBuf,
     /// Write every ring as CSV with the header `ring,parent,x,y,z,radius,vertices`
     /// (ring: its index; parent: its parent's index, empty for a root; x,y,z: its centre
@@ -244,10 +245,12 @@ fn rings_csv(model: &TreeModel) -> String {
 
 /// Runs the tree-info tool.
 pub fn run(args: Args) -> ExitCode {
-    let (model, warnings) = match load(&args.file, &args.settings()) {
+    // A path that names no file may be one under `assets/`, as the shipped trees are.
+    let file = crate::assets::resolve(&args.file).unwrap_or_else(|_| args.file.clone());
+    let (model, warnings) = match load(&file, &args.settings()) {
         Ok(loaded) => loaded,
         Err(e) => {
-            eprintln!("{}: {e}", args.file.display());
+            eprintln!("{}: {e}", file.display());
             return ExitCode::FAILURE;
         }
     };

@@ -107,6 +107,9 @@ pub struct LodDiagnostics {
     /// Far trees that kept last decision's representation this frame
     /// ([`FrameBudget::far_refresh`](super::FrameBudget::far_refresh); 0 by default).
     pub held_trees: u32,
+    /// The frame kept last frame's selection: the scene was still and it still fitted
+    /// ([`FrameBudget::steady`](super::FrameBudget::steady)).
+    pub selection_kept: bool,
     /// Group impostors drawn ([`StrategyKind::Hierarchical`](super::StrategyKind::Hierarchical);
     /// 0 otherwise).
     pub impostors_drawn: u32,

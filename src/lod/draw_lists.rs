@@ -16,6 +16,9 @@ use crate::instance::ForestInstances;
 pub(super) struct ChosenLists {
     /// Per visible tree ([`VisibleObjects::trees`]), its list.
     pub(super) trees: Vec<TreeDrawList>,
+    /// The Budget stage kept last frame's selection: the lists written stay as they are
+    /// (`trees` holds older ones, swapped out).
+    pub(super) kept: bool,
     /// The group impostors drawn and their lists.
     pub(super) impostors: ImpostorLists,
     /// The group impostors whose lists were written last frame.
@@ -73,6 +76,10 @@ pub(super) fn write_draw_lists(
     mut diagnostics: ResMut<LodDiagnostics>,
 ) {
     let start = Instant::now();
+    if chosen.kept {
+        diagnostics.draw_lists_stage_ms = start.elapsed().as_secs_f32() * 1000.0;
+        return;
+    }
     let chosen = &mut *chosen;
     // Trees shown last frame and not chosen now draw nothing; the chosen ones get their
     // list. (Only those: the rest of a large forest is left alone, already empty.)

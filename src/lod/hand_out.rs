@@ -12,18 +12,22 @@ use super::draw_lists::ChosenLists;
 use super::group_impostors::GroupImpostors;
 use super::search::{self, Choices, ObjectSearch};
 use super::select::{PrimitiveCosts, Selected};
+use super::steady;
 use super::strategy::{self, HandOut, Outcome, Scene, Strategies};
-use super::value::{FarDecisions, VisibleObjects};
+use super::value::{FarDecisions, Part, VisibleObjects};
 use super::{
     AppMeshLoad, BenefitReport, FrameBudget, HierarchicalCut, LadderEntry, LadderObjects,
     LodDiagnostics, StrategyKind,
 };
 use crate::budget::{Allocation, oracle};
-use crate::cost::{CostModel, FamilyTimes, FrameClock, FramePrediction, MeasuredPacing};
+use crate::cost::{
+    CostModel, FamilyScales, FamilyTimes, FrameClock, FramePrediction, MeasuredPacing,
+};
 use crate::culling::ForestCulling;
 use crate::display::{DisplayTiming, VsyncSettings};
 use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::tree::TreeModel;
+use crate::view::LodView;
 
 /// What the display and its pacing tell the aim.
 #[derive(SystemParam)]
@@ -52,6 +56,83 @@ pub(super) struct BudgetState {
     /// Since when (real seconds since start-up) the target has been at or below the
     /// logic time, and whether that was reported.
     target: TargetWatch,
+    /// The last fresh hand-out, for a still scene to keep ([`FrameBudget::steady`]).
+    kept: Option<KeptHandOut>,
+}
+
+/// A hand-out and the scene it was made for, kept while the scene stays still and the
+/// selection still fits ([`FrameBudget::steady`]); its lists stay in [`ChosenLists`].
+struct KeptHandOut {
+    budget: FrameBudget,
+    view: Option<LodView>,
+    /// Per visible object, its entity, part and value.
+    objects: Vec<(Entity, Part, f32)>,
+    outcome: Outcome,
+    /// The trees' and ladders' selection priced by the calibration alone.
+    calibrated: FamilyTimes,
+    mesh_levels: Vec<Option<u32>>,
+    /// What the selection draws, and how many trees on their own.
+    counts: PrimitiveCounts,
+    trees_drawn: u32,
+    /// The hand-out's benefit and its bound (with [`BenefitReport`]).
+    score: (f32, f32),
+}
+
+impl KeptHandOut {
+    /// Whether this frame's scene is the kept one's: the same settings and camera, the
+    /// same objects in the same order, each of nearly the same value.
+    fn is_still(
+        &self,
+        budget: &FrameBudget,
+        visible: &VisibleObjects,
+        ladders: &[LadderEntry],
+    ) -> bool {
+        self.budget == *budget
+            && self.view == visible.view
+            && self.objects.len() == visible.objects.len()
+            && self.objects.iter().zip(identities(visible, ladders)).all(
+                |(&(entity, part, then), (now_entity, now_part, now))| {
+                    entity == now_entity && part == now_part && budget.steady.same_value(then, now)
+                },
+            )
+    }
+
+    /// The kept outcome priced at this frame's learned costs.
+    fn repriced(&self, scales: FamilyScales) -> Outcome {
+        let now = steady::rescaled(self.calibrated, scales);
+        let mut outcome = self.outcome.clone();
+        outcome.drawn = Selected {
+            cost: now.total(),
+            lines: now.lines,
+            points: now.points,
+            meshes: now.meshes,
+            mesh_pixels: now.mesh_pixels,
+            ..outcome.drawn
+        };
+        outcome.stats.used = now.total();
+        outcome
+    }
+}
+
+/// Per visible object, its entity, part and value.
+fn identities<'a>(
+    visible: &'a VisibleObjects,
+    ladders: &'a [LadderEntry],
+) -> impl Iterator<Item = (Entity, Part, f32)> + 'a {
+    visible
+        .objects
+        .iter()
+        .zip(&visible.values)
+        .map(|(object, &value)| {
+            let entity = match object.part {
+                Part::Mesh => ladders.get(object.index as usize).map(|entry| entry.entity),
+                _ => visible
+                    .trees
+                    .get(object.index as usize)
+                    .map(|tree| tree.entity),
+            };
+            (entity.unwrap_or(Entity::PLACEHOLDER), object.part, value)
+        })
 }
 
 /// The frame's time as the budget sees it, seconds.
@@ -151,51 +232,105 @@ pub(super) fn hand_out_time(
         &pacing,
     );
 
-    chosen.clear_for(visible.trees.len());
-    let LadderObjects {
-        entries,
-        triangles,
-        chosen: mesh_levels,
-        ..
-    } = &mut *ladders;
-    let search = object_search(&visible, &budget, &costs, &boxes.models, entries, triangles);
-    let ChosenLists {
-        trees: lists,
-        impostors: impostor_lists,
-        ..
-    } = &mut *chosen;
-    let mut hand_out = HandOut {
-        search: &search,
-        choices: Choices { lists, mesh_levels },
-        values: &visible.values,
-        complexities: &visible.complexities,
-        rendering: (times.rendering - visible.held_parts.cost).max(0.0),
-        allocations: &mut state.allocations,
-        scratch: &mut state.scratch,
-        tree_parts: far.holding().then_some(&mut state.tree_parts),
-        scene: Scene {
-            culling: boxes.culling.as_deref(),
-            impostors: &boxes.impostors,
-            models: &boxes.models,
-            cut: &mut boxes.cut,
-            impostor_lists,
-        },
-    };
     let time_critical = budget.mode.is_time_critical();
-    let outcome = if time_critical {
-        strategies.get(budget.strategy).hand_out(&mut hand_out)
-    } else {
-        strategy::draw_everything(&mut hand_out)
+    let keeping = time_critical && !far.holding();
+    let scales = cost_model.family_scales();
+    let rendering = (times.rendering - visible.held_parts.cost).max(0.0);
+    let kept = state
+        .kept
+        .as_ref()
+        .filter(|kept| keeping && kept.is_still(&budget, &visible, &ladders.entries))
+        .map(|kept| (kept.repriced(scales), kept))
+        .filter(|(outcome, _)| budget.steady.keeps(outcome.stats.used, rendering))
+        .map(|(outcome, kept)| {
+            let selection = Selection {
+                drawn: outcome.drawn,
+                predicted: outcome.stats.used,
+                counts: kept.counts,
+                visible_instances: visible.instances_in_view(),
+                trees_drawn: kept.trees_drawn,
+            };
+            (outcome, selection, kept.score, kept.mesh_levels.clone())
+        });
+    // The DrawLists stage leaves a kept selection's lists where they are.
+    chosen.kept = kept.is_some();
+    let selection_kept = kept.is_some();
+    let (outcome, score, selection) = match kept {
+        Some((outcome, selection, (benefit, bound), mesh_levels)) => {
+            ladders.chosen = mesh_levels;
+            let score = report.enabled.then_some((benefit, bound, Duration::ZERO));
+            (outcome, score, Some(selection))
+        }
+        None => {
+            chosen.clear_for(visible.trees.len());
+            let LadderObjects {
+                entries,
+                triangles,
+                chosen: mesh_levels,
+                ..
+            } = &mut *ladders;
+            let search =
+                object_search(&visible, &budget, &costs, &boxes.models, entries, triangles);
+            let ChosenLists {
+                trees: lists,
+                impostors: impostor_lists,
+                ..
+            } = &mut *chosen;
+            let mut hand_out = HandOut {
+                search: &search,
+                choices: Choices { lists, mesh_levels },
+                values: &visible.values,
+                complexities: &visible.complexities,
+                rendering,
+                allocations: &mut state.allocations,
+                scratch: &mut state.scratch,
+                tree_parts: far.holding().then_some(&mut state.tree_parts),
+                scene: Scene {
+                    culling: boxes.culling.as_deref(),
+                    impostors: &boxes.impostors,
+                    models: &boxes.models,
+                    cut: &mut boxes.cut,
+                    impostor_lists,
+                },
+            };
+            let outcome = if time_critical {
+                strategies.get(budget.strategy).hand_out(&mut hand_out)
+            } else {
+                strategy::draw_everything(&mut hand_out)
+            };
+            let score = (report.enabled && time_critical)
+                .then(|| score_hand_out(&mut hand_out, &outcome, times.rendering));
+            (outcome, score, None)
+        }
     };
-    let score = (report.enabled && time_critical)
-        .then(|| score_hand_out(&mut hand_out, &outcome, times.rendering));
-    let selection = Selection::of(
-        &visible,
-        &chosen.trees,
-        &mut far,
-        &state.tree_parts,
-        &outcome,
-    );
+    let selection = selection.unwrap_or_else(|| {
+        Selection::of(
+            &visible,
+            &chosen.trees,
+            &mut far,
+            &state.tree_parts,
+            &outcome,
+        )
+    });
+    if !selection_kept {
+        state.kept = keeping.then(|| KeptHandOut {
+            budget: budget.clone(),
+            view: visible.view,
+            objects: identities(&visible, &ladders.entries).collect(),
+            calibrated: by_family(
+                selection.drawn,
+                selection.predicted,
+                selection.counts,
+                &costs,
+            )
+            .unscaled(scales),
+            outcome: outcome.clone(),
+            mesh_levels: ladders.chosen.clone(),
+            counts: selection.counts,
+            trees_drawn: selection.trees_drawn,
+            score: score.map_or((0.0, 0.0), |(benefit, bound, _)| (benefit, bound)),
+        });
+    }
     let priced = record_prediction(&mut cost_model, &clock, &times, &costs, &selection);
     let (benefit, benefit_bound, report_time) = score.unwrap_or_default();
     *diagnostics = LodDiagnostics {
@@ -204,6 +339,7 @@ pub(super) fn hand_out_time(
         budget_stage_ms: (start.elapsed() - report_time).as_secs_f32() * 1000.0,
         // Counted after the hand-out, over the measured frames (`count_frames_over`).
         frames_over_share: diagnostics.frames_over_share,
+        selection_kept,
         ..frame_diagnostics(
             &budget,
             &cost_model,
@@ -327,6 +463,27 @@ struct Priced {
     frame_time: f32,
 }
 
+/// A selection's predicted time by family: what is not lines, points or meshes is
+/// triangles, per triangle up to the triangles' learned cost and the rest per pixel.
+fn by_family(
+    drawn: Selected,
+    predicted: f32,
+    counts: PrimitiveCounts,
+    costs: &PrimitiveCosts,
+) -> FamilyTimes {
+    let triangles =
+        (predicted - drawn.lines - drawn.points - drawn.meshes - drawn.mesh_pixels).max(0.0);
+    let triangle_vertices = (counts.triangles as f32 * costs.triangle).min(triangles);
+    FamilyTimes {
+        triangles: triangle_vertices,
+        triangle_pixels: triangles - triangle_vertices,
+        lines: drawn.lines,
+        points: drawn.points,
+        meshes: drawn.meshes,
+        mesh_pixels: drawn.mesh_pixels,
+    }
+}
+
 /// Records this frame's prediction with the cost model: the selection by family, priced
 /// as the calibration alone would, for the model to learn from once the frame is
 /// measured.
@@ -337,24 +494,15 @@ fn record_prediction(
     costs: &PrimitiveCosts,
     selection: &Selection,
 ) -> Priced {
-    let Selection {
-        drawn,
-        predicted,
-        counts,
-        ..
-    } = *selection;
-    let triangles =
-        (predicted - drawn.lines - drawn.points - drawn.meshes - drawn.mesh_pixels).max(0.0);
-    let triangle_vertices = (counts.triangles as f32 * costs.triangle).min(triangles);
-    let by_family = FamilyTimes {
-        triangles: triangle_vertices,
-        triangle_pixels: triangles - triangle_vertices,
-        lines: drawn.lines,
-        points: drawn.points,
-        meshes: drawn.meshes + times.app_meshes.meshes,
-        mesh_pixels: drawn.mesh_pixels + times.app_meshes.mesh_pixels,
-    };
-    let render = times.fixed + times.app_meshes.cost + predicted;
+    let mut by_family = by_family(
+        selection.drawn,
+        selection.predicted,
+        selection.counts,
+        costs,
+    );
+    by_family.meshes += times.app_meshes.meshes;
+    by_family.mesh_pixels += times.app_meshes.mesh_pixels;
+    let render = times.fixed + times.app_meshes.cost + selection.predicted;
     let frame_time = cost_model.overlap().frame_time(times.logic, render);
     let calibrated = by_family.unscaled(cost_model.family_scales());
     cost_model.record(FramePrediction {

@@ -47,6 +47,7 @@ mod hand_out;
 mod search;
 pub(crate) mod select;
 mod settings;
+mod steady;
 mod strategy;
 mod value;
 
@@ -60,6 +61,7 @@ pub use settings::{
     BenefitReport, FrameBudget, FrameGoal, GroupImpostorSettings, LodMode, StrategyKind,
 };
 pub(crate) use settings::{RUNG_FRACTIONS, TARGET_WARNING_SECS};
+pub use steady::SteadySelection;
 pub(crate) use strategy::HierarchicalCut;
 
 use bevy::prelude::*;

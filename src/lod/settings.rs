@@ -3,6 +3,7 @@
 use bevy::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::SteadySelection;
 use crate::budget::ValueFunction;
 use crate::tree::PixelRange;
 
@@ -139,6 +140,14 @@ pub struct FrameBudget {
     /// [`LodDiagnostics::held_trees`](super::LodDiagnostics::held_trees) counts the trees
     /// held each frame. Default: `1` (every tree decided every frame, as in the paper).
     pub far_refresh: u32,
+    /// How a still scene keeps its selection while the learned costs wander with the
+    /// machine's noise (a still camera sees no shimmer). Default:
+    /// [`SteadySelection::default`] (kept within −10% / +3% of the rendering time);
+    /// [`SteadySelection::OFF`] hands out anew every frame, as the paper does. Applies to
+    /// the time-critical modes with `far_refresh` 1;
+    /// [`LodDiagnostics::selection_kept`](super::LodDiagnostics::selection_kept) says when
+    /// it did.
+    pub steady: SteadySelection,
 }
 
 impl Default for FrameBudget {
@@ -154,6 +163,7 @@ impl Default for FrameBudget {
             line_widths: PixelRange::default(),
             point_sizes: PixelRange::default(),
             far_refresh: 1,
+            steady: SteadySelection::default(),
         }
     }
 }

@@ -12,6 +12,7 @@ use crate::cost::{
     FrameSamples,
 };
 use crate::culling::CullView;
+use crate::draw::TreeDrawList;
 use crate::prelude::*;
 use bevy::prelude::*;
 
@@ -719,5 +720,82 @@ fn the_tail_goal_follows_a_regime_switch_of_the_machine_s_scatter() {
         four > 0.5,
         "after the scatter fell: {:.0}% of the way in four seconds",
         four * 100.0
+    );
+}
+
+/// Every instance's draw list, in instance order.
+fn all_lists(app: &mut App) -> Vec<TreeDrawList> {
+    let world = app.world_mut();
+    let entities = world.resource::<ForestInstances>().entities.clone();
+    entities
+        .into_iter()
+        .map(|e| world.get::<TreeDrawList>(e).cloned().unwrap_or_default())
+        .collect()
+}
+
+/// At a still camera, frames measured with ±10% noise: how many of `frames` frames
+/// changed some tree's draw list, with `steady` (after the learning has settled).
+fn list_changes_at_a_still_camera(steady: SteadySelection, frames: u32) -> (u32, App, f32) {
+    let (mut app, size) = app(Calibration::default());
+    {
+        let mut budget = app.world_mut().resource_mut::<FrameBudget>();
+        budget.target_ms = 60.0;
+        budget.steady = steady;
+    }
+    let mut driver = Driver::new(0.10);
+    for _ in 0..150 {
+        driver.frame(&mut app, &MACHINE);
+    }
+    let mut last = all_lists(&mut app);
+    let mut changes = 0;
+    for _ in 0..frames {
+        driver.frame(&mut app, &MACHINE);
+        let lists = all_lists(&mut app);
+        changes += u32::from(lists != last);
+        last = lists;
+    }
+    (changes, app, size)
+}
+
+/// The still-camera shimmer: with measurements that scatter by ±10%, the learned costs
+/// move every frame; a still scene keeps its selection (at most 1 frame in 10 hands out
+/// anew, when the kept selection's price leaves its band), where handing out every frame
+/// changes the lists in most frames. A change of the target or of the view still
+/// changes the selection at once.
+#[test]
+fn a_still_camera_keeps_its_selection_under_noisy_measurements() {
+    let _measuring = common::measuring();
+    let frames = 60;
+    let (every_frame, ..) = list_changes_at_a_still_camera(SteadySelection::OFF, frames);
+    let (steady, mut app, size) =
+        list_changes_at_a_still_camera(SteadySelection::default(), frames);
+    assert!(
+        every_frame >= frames / 2,
+        "without steadiness the noise changed only {every_frame} of {frames} frames"
+    );
+    assert!(
+        steady <= frames / 10,
+        "a still camera changed its lists in {steady} of {frames} frames"
+    );
+    let mut driver = Driver::new(0.10);
+    let before = all_lists(&mut app);
+    app.world_mut().resource_mut::<FrameBudget>().target_ms = 45.0;
+    driver.frame(&mut app, &MACHINE);
+    let kept = app.world().resource::<LodDiagnostics>().selection_kept;
+    assert!(
+        !kept && all_lists(&mut app) != before,
+        "a new target is handed out at once"
+    );
+    let before = all_lists(&mut app);
+    common::look_from(
+        &mut app,
+        Vec3::new(-0.1 * size, 21.0, -0.1 * size),
+        Vec3::new(0.6 * size, 0.0, 0.7 * size),
+    );
+    driver.frame(&mut app, &MACHINE);
+    let kept = app.world().resource::<LodDiagnostics>().selection_kept;
+    assert!(
+        !kept && all_lists(&mut app) != before,
+        "a moved view is handed out at once"
     );
 }

@@ -75,6 +75,7 @@ impl Row {
             truncated: d.truncated,
             undrawn: d.undrawn,
             held_trees: d.held_trees,
+            selection_kept: u8::from(d.selection_kept),
             impostors_drawn: d.impostors_drawn,
             trees_drawn: d.trees_drawn,
             wasted_ms: d.wasted_ms,

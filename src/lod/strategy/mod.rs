@@ -128,7 +128,7 @@ pub(super) struct Scene<'a> {
 }
 
 /// What a hand-out drew.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(super) struct Outcome {
     pub(super) stats: BudgetStats,
     /// What the drawn choices together cost, by family.
