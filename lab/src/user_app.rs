@@ -18,7 +18,7 @@ use bevy_sherwood::cost::CostModel;
 use bevy_sherwood::display as deadline;
 use bevy_sherwood::prelude::*;
 
-use crate::forest::Mode;
+use crate::forest::{Mode, positive};
 
 /// The user-app harness's command line.
 #[derive(clap::Args, Resource, Clone, Debug)]
@@ -75,13 +75,6 @@ fn msaa_samples(text: &str) -> Result<u32, String> {
     match text.parse::<u32>() {
         Ok(n @ (1 | 2 | 4 | 8)) => Ok(n),
         _ => Err(format!("{text:?}: the samples are 1, 2, 4 or 8")),
-    }
-}
-
-fn positive(text: &str) -> Result<f32, String> {
-    match text.parse::<f32>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("{text:?} is not a positive number")),
     }
 }
 

@@ -16,9 +16,6 @@ use crate::instance::ForestInstances;
 pub(super) struct ChosenLists {
     /// Per visible tree ([`VisibleObjects::trees`]), its list.
     pub(super) trees: Vec<TreeDrawList>,
-    /// The Budget stage kept last frame's selection: the lists written stay as they are
-    /// (`trees` holds older ones, swapped out).
-    pub(super) kept: bool,
     /// The group impostors drawn and their lists.
     pub(super) impostors: ImpostorLists,
     /// The group impostors whose lists were written last frame.
@@ -76,7 +73,9 @@ pub(super) fn write_draw_lists(
     mut diagnostics: ResMut<LodDiagnostics>,
 ) {
     let start = Instant::now();
-    if chosen.kept {
+    // A kept selection's lists are the ones written (`trees` holds older ones, swapped
+    // out): they stay as they are.
+    if diagnostics.selection_kept {
         diagnostics.draw_lists_stage_ms = start.elapsed().as_secs_f32() * 1000.0;
         return;
     }

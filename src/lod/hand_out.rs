@@ -97,6 +97,28 @@ impl KeptHandOut {
             )
     }
 
+    /// The kept hand-out again, when it still fits `rendering` at this frame's learned
+    /// costs: its outcome and selection repriced, its score and ladder levels.
+    fn reused(
+        &self,
+        budget: &FrameBudget,
+        visible: &VisibleObjects,
+        scales: FamilyScales,
+        rendering: f32,
+    ) -> Option<(Outcome, Selection, (f32, f32), Vec<Option<u32>>)> {
+        let outcome = self.repriced(scales);
+        budget.steady.keeps(outcome.stats.used, rendering).then(|| {
+            let selection = Selection {
+                drawn: outcome.drawn,
+                predicted: outcome.stats.used,
+                counts: self.counts,
+                visible_instances: visible.instances_in_view(),
+                trees_drawn: self.trees_drawn,
+            };
+            (outcome, selection, self.score, self.mesh_levels.clone())
+        })
+    }
+
     /// The kept outcome priced at this frame's learned costs.
     fn repriced(&self, scales: FamilyScales) -> Outcome {
         let now = steady::rescaled(self.calibrated, scales);
@@ -240,20 +262,7 @@ pub(super) fn hand_out_time(
         .kept
         .as_ref()
         .filter(|kept| keeping && kept.is_still(&budget, &visible, &ladders.entries))
-        .map(|kept| (kept.repriced(scales), kept))
-        .filter(|(outcome, _)| budget.steady.keeps(outcome.stats.used, rendering))
-        .map(|(outcome, kept)| {
-            let selection = Selection {
-                drawn: outcome.drawn,
-                predicted: outcome.stats.used,
-                counts: kept.counts,
-                visible_instances: visible.instances_in_view(),
-                trees_drawn: kept.trees_drawn,
-            };
-            (outcome, selection, kept.score, kept.mesh_levels.clone())
-        });
-    // The DrawLists stage leaves a kept selection's lists where they are.
-    chosen.kept = kept.is_some();
+        .and_then(|kept| kept.reused(&budget, &visible, scales, rendering));
     let selection_kept = kept.is_some();
     let (outcome, score, selection) = match kept {
         Some((outcome, selection, (benefit, bound), mesh_levels)) => {

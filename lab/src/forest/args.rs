@@ -306,8 +306,8 @@ fn name<T: ValueEnum>(variants: &[T], matches: impl Fn(&T) -> bool) -> String {
         .map_or_else(|| "?".to_owned(), |v| v.get_name().to_owned())
 }
 
-/// A positive, finite number.
-fn positive(text: &str) -> Result<f32, String> {
+/// A positive, finite number (a command-line value parser).
+pub fn positive(text: &str) -> Result<f32, String> {
     match text.parse::<f32>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         Ok(_) => Err("must be a positive number".into()),

@@ -26,7 +26,7 @@ mod measure;
 mod scene;
 
 use args::CameraPath;
-pub use args::{Args, Mode};
+pub use args::{Args, Mode, positive};
 use measure::Run;
 
 /// Runs the forest tool.
