@@ -74,22 +74,33 @@ struct KeptHandOut {
     /// What the selection draws, and how many trees on their own.
     counts: PrimitiveCounts,
     trees_drawn: u32,
-    /// The hand-out's benefit and its bound (with [`BenefitReport`]).
-    score: (f32, f32),
+    /// The hand-out's benefit and its bound, when [`BenefitReport`] scored it.
+    score: Option<(f32, f32)>,
+    /// Its price over the rendering time, as handed out and smoothed since.
+    fit: steady::Fit,
 }
 
 impl KeptHandOut {
     /// Whether this frame's scene is the kept one's: the same settings and camera, the
-    /// same objects in the same order, each of nearly the same value.
+    /// same objects in the same order, each of nearly the same value, and every mesh
+    /// ladder showing the level chosen (a level the hysteresis still holds back will
+    /// change, and the kept price is the level shown when it was chosen).
     fn is_still(
         &self,
         budget: &FrameBudget,
         visible: &VisibleObjects,
         ladders: &[LadderEntry],
+        scored: bool,
     ) -> bool {
         self.budget == *budget
+            && self.score.is_some() == scored
             && self.view == visible.view
             && self.objects.len() == visible.objects.len()
+            && ladders.len() == self.mesh_levels.len()
+            && ladders
+                .iter()
+                .zip(&self.mesh_levels)
+                .all(|(entry, level)| level.is_none_or(|level| entry.hold.shown == level))
             && self.objects.iter().zip(identities(visible, ladders)).all(
                 |(&(entity, part, then), (now_entity, now_part, now))| {
                     entity == now_entity && part == now_part && budget.steady.same_value(then, now)
@@ -100,14 +111,15 @@ impl KeptHandOut {
     /// The kept hand-out again, when it still fits `rendering` at this frame's learned
     /// costs: its outcome and selection repriced, its score and ladder levels.
     fn reused(
-        &self,
+        &mut self,
         budget: &FrameBudget,
         visible: &VisibleObjects,
         scales: FamilyScales,
         rendering: f32,
-    ) -> Option<(Outcome, Selection, (f32, f32), Vec<Option<u32>>)> {
+    ) -> Option<(Outcome, Selection, Option<(f32, f32)>, Vec<Option<u32>>)> {
         let outcome = self.repriced(scales);
-        budget.steady.keeps(outcome.stats.used, rendering).then(|| {
+        let price = outcome.stats.used;
+        budget.steady.keeps(&mut self.fit, price, rendering).then(|| {
             let selection = Selection {
                 drawn: outcome.drawn,
                 predicted: outcome.stats.used,
@@ -260,14 +272,16 @@ pub(super) fn hand_out_time(
     let rendering = (times.rendering - visible.held_parts.cost).max(0.0);
     let kept = state
         .kept
-        .as_ref()
-        .filter(|kept| keeping && kept.is_still(&budget, &visible, &ladders.entries))
+        .as_mut()
+        .filter(|kept| {
+            keeping && kept.is_still(&budget, &visible, &ladders.entries, report.enabled)
+        })
         .and_then(|kept| kept.reused(&budget, &visible, scales, rendering));
     let selection_kept = kept.is_some();
     let (outcome, score, selection) = match kept {
-        Some((outcome, selection, (benefit, bound), mesh_levels)) => {
+        Some((outcome, selection, score, mesh_levels)) => {
             ladders.chosen = mesh_levels;
-            let score = report.enabled.then_some((benefit, bound, Duration::ZERO));
+            let score = score.map(|(benefit, bound)| (benefit, bound, Duration::ZERO));
             (outcome, score, Some(selection))
         }
         None => {
@@ -322,7 +336,8 @@ pub(super) fn hand_out_time(
         )
     });
     if !selection_kept {
-        state.kept = keeping.then(|| KeptHandOut {
+        let fit = budget.steady.fit(outcome.stats.used, rendering);
+        state.kept = fit.filter(|_| keeping && !outcome.settling).map(|fit| KeptHandOut {
             budget: budget.clone(),
             view: visible.view,
             objects: identities(&visible, &ladders.entries).collect(),
@@ -337,7 +352,8 @@ pub(super) fn hand_out_time(
             mesh_levels: ladders.chosen.clone(),
             counts: selection.counts,
             trees_drawn: selection.trees_drawn,
-            score: score.map_or((0.0, 0.0), |(benefit, bound, _)| (benefit, bound)),
+            score: score.map(|(benefit, bound, _)| (benefit, bound)),
+            fit,
         });
     }
     let priced = record_prediction(&mut cost_model, &clock, &times, &costs, &selection);

@@ -142,8 +142,8 @@ pub struct FrameBudget {
     pub far_refresh: u32,
     /// How a still scene keeps its selection while the learned costs wander with the
     /// machine's noise (a still camera sees no shimmer). Default:
-    /// [`SteadySelection::OFF`] (hand out anew every frame, as the paper does);
-    /// [`SteadySelection::KEEP_WHILE_STILL`] keeps a still scene's selection. Applies to
+    /// [`SteadySelection::KEEP_WHILE_STILL`]; [`SteadySelection::OFF`] hands out anew
+    /// every frame, as the paper does. Applies to
     /// the time-critical modes with `far_refresh` 1;
     /// [`LodDiagnostics::selection_kept`](super::LodDiagnostics::selection_kept) says when
     /// it did.

@@ -12,77 +12,108 @@ use crate::cost::{FamilyScales, FamilyTimes};
 
 /// How a still scene keeps its selection ([`FrameBudget::steady`](super::FrameBudget::steady)).
 ///
-/// Last frame's selection, priced at this frame's learned costs, is kept while the price
-/// is within `[(1 − below), (1 + above)] ×` the rendering time and the scene has not
-/// changed; otherwise the time is handed out anew. A machine that slows or speeds up by
-/// more than the band gets a new hand-out at once, so the target is still held.
+/// A fresh hand-out fills some share of the rendering time (its *fit*, the price over
+/// the time: about 1, less when everything fits). Each following frame of the same
+/// scene, the kept selection is priced at that frame's learned costs and its fit,
+/// smoothed over [`smoothing_frames`](Self::smoothing_frames), is compared with the
+/// fresh one: the selection is kept while the smoothed fit stays within
+/// `[(1 − below) × fresh, (1 + above) × max(fresh, 1)]`; otherwise the time is handed
+/// out anew. The band follows the aim (the rendering time is this frame's), so a machine
+/// that slows or speeds up by more than the band, or a tail goal that moves its aim, gets
+/// a new hand-out within a few frames and the target is still held.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Reflect)]
 #[serde(default)]
 pub struct SteadySelection {
-    /// How far below the rendering time the kept selection's price may fall (time left
-    /// unused) before the time is handed out again, as a share. Default: `0` (see
-    /// [`OFF`](Self::OFF)).
+    /// How far below the fresh fit the smoothed fit may fall (time left unused) before
+    /// the time is handed out again, as a share. Default: `0.03`.
     pub below: f32,
-    /// How far above the rendering time it may rise (a predicted overrun) before the
-    /// time is handed out again, as a share. Default: `0`.
+    /// How far above the fresh fit (or the rendering time, when the fresh hand-out fitted
+    /// it) the smoothed fit may rise (a predicted overrun) before the time is handed out
+    /// again, as a share. Default: `0.03`.
     pub above: f32,
     /// How much an object's value may change (a share of it) with the scene still
     /// counting as the same: trees swaying in the wind move their bounds a little.
-    /// Default: `0`.
+    /// Default: `0.02`.
     pub value_change: f32,
+    /// Over how many frames the kept selection's fit is smoothed (an exponential
+    /// average): the learned costs move a few percent a frame with the machine's noise,
+    /// a change of its speed lasts. Default: `8`.
+    pub smoothing_frames: f32,
 }
 
 impl SteadySelection {
-    /// Hand out anew every frame (the paper's behaviour, and the default for now: a
-    /// kept selection below the aim leaves fewer frames over than the tail goal
-    /// promises, and the mesh ladders' own hysteresis is not yet reconciled with it).
+    /// Hand out anew every frame (the paper's behaviour).
     pub const OFF: Self = Self {
         below: 0.0,
         above: 0.0,
         value_change: 0.0,
+        smoothing_frames: 1.0,
     };
 
-    /// Keep a still scene's selection within −10% / +3% of the rendering time, values
-    /// within 2%.
+    /// Keep a still scene's selection while its smoothed fit stays within ±3% (the
+    /// default).
     pub const KEEP_WHILE_STILL: Self = Self {
-        below: 0.1,
+        below: 0.03,
         above: 0.03,
         value_change: 0.02,
+        smoothing_frames: 8.0,
     };
 
-    /// Whether a selection that costs `price` fits `rendering` closely enough to keep.
-    /// Shares that are not finite or negative count as 0 (no keeping on that side).
-    pub(crate) fn keeps(&self, price: f32, rendering: f32) -> bool {
-        let share = |s: f32| {
-            if s.is_finite() {
-                s.clamp(0.0, 1.0)
-            } else {
-                0.0
-            }
+    /// The fit of a fresh hand-out that costs `price` of `rendering`; `None` when there
+    /// is nothing to keep (steadiness off, or no time or price to compare).
+    pub(crate) fn fit(&self, price: f32, rendering: f32) -> Option<Fit> {
+        let ratio = price / rendering;
+        (self.is_on() && ratio.is_finite() && rendering > 0.0).then_some(Fit {
+            fresh: ratio,
+            smoothed: ratio,
+        })
+    }
+
+    /// Whether a selection of `fit` that costs `price` of `rendering` this frame is
+    /// kept; its smoothed fit moves to this frame's.
+    pub(crate) fn keeps(&self, fit: &mut Fit, price: f32, rendering: f32) -> bool {
+        let ratio = price / rendering;
+        if !(self.is_on() && ratio.is_finite() && rendering > 0.0) {
+            return false;
+        }
+        let frames = if self.smoothing_frames.is_finite() {
+            self.smoothing_frames.max(1.0)
+        } else {
+            1.0
         };
+        fit.smoothed += (ratio - fit.smoothed) / frames;
         let (below, above) = (share(self.below), share(self.above));
-        below + above > 0.0
-            && price.is_finite()
-            && rendering > 0.0
-            && price >= (1.0 - below) * rendering
-            && price <= (1.0 + above) * rendering
+        fit.smoothed >= (1.0 - below) * fit.fresh
+            && fit.smoothed <= (1.0 + above) * fit.fresh.max(1.0)
+    }
+
+    fn is_on(&self) -> bool {
+        share(self.below) + share(self.above) > 0.0
     }
 
     /// Whether `now` is the same value as `then`, within [`value_change`](Self::value_change).
     pub(crate) fn same_value(&self, then: f32, now: f32) -> bool {
-        let tolerance = if self.value_change.is_finite() {
-            self.value_change.clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        (now - then).abs() <= tolerance * then.abs().max(now.abs())
+        (now - then).abs() <= share(self.value_change) * then.abs().max(now.abs())
     }
+}
+
+/// A share in `[0, 1]`; one that is not finite counts as 0.
+fn share(s: f32) -> f32 {
+    if s.is_finite() { s.clamp(0.0, 1.0) } else { 0.0 }
 }
 
 impl Default for SteadySelection {
     fn default() -> Self {
-        Self::OFF
+        Self::KEEP_WHILE_STILL
     }
+}
+
+/// A kept selection's price over the rendering time: when it was handed out, and
+/// smoothed since.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Fit {
+    fresh: f32,
+    smoothed: f32,
 }
 
 /// Each family's calibrated time multiplied by its learned factor: what a selection
@@ -105,23 +136,46 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_selection_is_kept_inside_the_band_only() {
-        let steady = SteadySelection::KEEP_WHILE_STILL;
-        assert!(steady.keeps(1.0, 1.0));
-        assert!(steady.keeps(0.91, 1.0) && steady.keeps(1.029, 1.0));
-        assert!(!steady.keeps(0.89, 1.0), "too much time left unused");
-        assert!(!steady.keeps(1.04, 1.0), "a predicted overrun");
-        assert!(!steady.keeps(f32::NAN, 1.0) && !steady.keeps(0.0, 0.0));
-        assert!(!SteadySelection::OFF.keeps(1.0, 1.0));
+    fn a_selection_is_kept_while_its_smoothed_fit_stays_in_the_band() {
+        let steady = SteadySelection {
+            smoothing_frames: 1.0,
+            ..SteadySelection::KEEP_WHILE_STILL
+        };
+        let kept = |fresh: f32, now: f32| {
+            let mut fit = steady.fit(fresh, 1.0).unwrap();
+            steady.keeps(&mut fit, now, 1.0)
+        };
+        assert!(kept(1.0, 1.0) && kept(1.0, 0.975) && kept(1.0, 1.025));
+        assert!(!kept(1.0, 0.96), "too much time left unused");
+        assert!(!kept(1.0, 1.04), "a predicted overrun");
+        assert!(kept(0.5, 0.49), "a hand-out that could not use the time keeps");
+        assert!(!kept(0.5, 0.45));
+        assert!(kept(1.2, 1.22), "nor could one whose cheapest overran");
+        assert!(!kept(1.0, f32::NAN));
+        assert!(steady.fit(1.0, 0.0).is_none() && SteadySelection::OFF.fit(1.0, 1.0).is_none());
         let odd = SteadySelection {
             below: f32::NAN,
             above: -1.0,
-            value_change: 0.0,
+            ..steady
         };
         assert!(
-            !odd.keeps(1.0, 1.0),
+            odd.fit(1.0, 1.0).is_none(),
             "shares that are not finite or negative are 0"
         );
+    }
+
+    #[test]
+    fn noise_is_smoothed_and_a_lasting_change_leaves_the_band_within_a_few_frames() {
+        let steady = SteadySelection::KEEP_WHILE_STILL;
+        let mut fit = steady.fit(1.0, 1.0).unwrap();
+        // Alternating ±6%: each frame alone would leave the band.
+        for k in 0..40 {
+            let price = if k % 2 == 0 { 1.06 } else { 0.94 };
+            assert!(steady.keeps(&mut fit, price, 1.0), "frame {k}");
+        }
+        // The machine 15% slower from now on.
+        let left = (1..=10).find(|_| !steady.keeps(&mut fit, 1.15, 1.0));
+        assert!(left.is_some_and(|k| k <= 3), "{left:?}");
     }
 
     #[test]
@@ -131,6 +185,7 @@ mod tests {
         assert!(!steady.same_value(10.0, 10.3));
         assert!(SteadySelection::OFF.same_value(3.0, 3.0));
         assert!(!SteadySelection::OFF.same_value(3.0, 3.0001));
+        assert_eq!(SteadySelection::default(), steady);
     }
 
     #[test]

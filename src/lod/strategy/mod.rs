@@ -139,6 +139,10 @@ pub(super) struct Outcome {
     /// The benefit of what was drawn, when the strategy knows it better than the
     /// allocations' sum (a cut's group impostors).
     pub(super) benefit: Option<f32>,
+    /// The strategy would choose otherwise next frame for the same scene (its own state
+    /// is still moving, as a hierarchical cut refining from last frame's): a still scene
+    /// does not keep this hand-out ([`FrameBudget::steady`](super::FrameBudget::steady)).
+    pub(super) settling: bool,
 }
 
 impl Outcome {

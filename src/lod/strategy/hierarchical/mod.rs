@@ -127,6 +127,8 @@ impl Strategy for Hierarchical {
         let used = outcome.drawn.cost;
         outcome.impostors_drawn = solved.impostors_drawn;
         outcome.benefit = Some(solved.solved.benefit as f32);
+        // The cut moves a box level a frame from where last frame's left it.
+        outcome.settling = scene.cut.selection != scene.cut.seed;
         // Not even the coarsest cut fitted: it is the floor, and its overrun the one no
         // choice could avoid.
         let floor = if solved.scene_dropped { used } else { 0.0 };
