@@ -5,18 +5,24 @@
 //! the average error is small.
 //!
 //! ```sh
-//! cargo run --release -p sherwood-lab -- quality compare FULL.png FULL-ID.png LOD.png LOD-ID.png
+//! cargo run --release --bin sherwood-lab -- quality compare FULL.png FULL-ID.png LOD.png LOD-ID.png
 //! ```
 //!
 //! Prints one line of `key=value` pairs (`scripts/quality.sh` gathers them): `ssim`
-//! (mean SSIM over 8×8 windows of the luma, 1 = identical), `trees` (trees with at least
+//! (mean SSIM over 8×8 windows of the luma, 1 = identical), `flip` (the mean ꟻLIP error,
+//! NVIDIA's perceptual difference of two pictures shown one after the other, Andersson
+//! et al. 2020: 0 = identical, 1 = opposite; at ꟻLIP's default 67 pixels per degree),
+//! `trees` (trees with at least
 //! `MIN_PIXELS` pixels at full detail), `coverage_mean`, `coverage_p5`, `coverage_min`,
 //! and `below_95` (how many of those trees keep less than 95% of their pixels).
 //!
 //! `quality sheet OUT.png COLUMNS IMAGE...` instead lays the pictures out at half size,
 //! `COLUMNS` to a row in the order given, as one contact sheet; `quality map OUT.png
 //! FULL.png LOD.png` writes where the two pictures differ, as the SSIM of each 8×8 window
-//! in false colour (blue: identical, red: unrelated).
+//! in false colour (blue: identical, red: unrelated); `quality shimmer FRAME...` measures
+//! how a still camera's consecutive frames differ: `changed_mean` and `changed_max` (the
+//! share of pixels that changed from one frame to the next) and `flip_mean`, `flip_max`
+//! (ꟻLIP between them).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -90,6 +96,48 @@ fn ssim(full: &RgbImage, lod: &RgbImage) -> Result<image_compare::Similarity, St
         .map_err(|e| format!("SSIM: {e}"))
 }
 
+/// The mean ꟻLIP error of `test` against `reference` (pictures of the same size).
+fn flip(reference: &RgbImage, test: &RgbImage) -> f32 {
+    let (w, h) = reference.dimensions();
+    let error = nv_flip::flip(
+        nv_flip::FlipImageRgb8::with_data(w, h, reference.as_raw()),
+        nv_flip::FlipImageRgb8::with_data(w, h, test.as_raw()),
+        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+    );
+    nv_flip::FlipPool::from_image(&error).mean()
+}
+
+/// The share of pixels that differ between two pictures of the same size.
+fn changed_share(a: &RgbImage, b: &RgbImage) -> f64 {
+    let changed = a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count();
+    changed as f64 / (u64::from(a.width()) * u64::from(a.height())).max(1) as f64
+}
+
+/// How consecutive `frames` (of a still camera) differ.
+fn shimmer(frames: &[PathBuf]) -> Result<String, String> {
+    let pictures: Vec<RgbImage> = frames.iter().map(|f| open(f)).collect::<Result<_, _>>()?;
+    if pictures.len() < 2 {
+        return Err("shimmer: at least two frames".into());
+    }
+    if pictures.iter().any(|p| p.dimensions() != pictures[0].dimensions()) {
+        return Err("shimmer: the frames must have the same size".into());
+    }
+    let pairs = pictures.windows(2);
+    let changed: Vec<f64> = pairs.clone().map(|w| changed_share(&w[0], &w[1])).collect();
+    let flips: Vec<f32> = pairs.map(|w| flip(&w[0], &w[1])).collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let flips: Vec<f64> = flips.into_iter().map(f64::from).collect();
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    Ok(format!(
+        "pairs={} changed_mean={:.6} changed_max={:.6} flip_mean={:.6} flip_max={:.6}",
+        changed.len(),
+        mean(&changed),
+        max(&changed),
+        mean(&flips),
+        max(&flips)
+    ))
+}
+
 /// Writes the per-window SSIM of `lod` against `full` into `out` as a colour map.
 fn ssim_map(out: &Path, full: &Path, lod: &Path) -> Result<String, String> {
     let similarity = ssim(&open(full)?, &open(lod)?)?;
@@ -136,6 +184,12 @@ enum What {
         full: PathBuf,
         lod: PathBuf,
     },
+    /// How a still camera's consecutive frames differ: the share of pixels changed, and
+    /// ꟻLIP between them.
+    Shimmer {
+        #[arg(num_args = 2.., required = true)]
+        frames: Vec<PathBuf>,
+    },
 }
 
 /// Runs the quality tool; prints its line.
@@ -153,6 +207,7 @@ pub fn run(args: Args) -> ExitCode {
             images,
         } => contact_sheet(out, *columns, images),
         What::Map { out, full, lod } => ssim_map(out, full, lod),
+        What::Shimmer { frames } => shimmer(frames),
     };
     crate::report("quality", line.map(|line| println!("{line}")))
 }
@@ -168,6 +223,7 @@ fn compare(full: &Path, full_id: &Path, lod: &Path, lod_id: &Path) -> Result<Str
         return Err("the four pictures must have the same size".into());
     }
     let ssim = ssim(&full, &lod)?.score;
+    let flip = flip(&full, &lod);
     let mut shares: Vec<f64> = coverage(&full_id, &lod_id)
         .values()
         .filter(|(pixels, _)| *pixels >= MIN_PIXELS)
@@ -180,6 +236,47 @@ fn compare(full: &Path, full_id: &Path, lod: &Path, lod_id: &Path) -> Result<Str
     let min = shares.first().copied().unwrap_or(1.0);
     let below = shares.iter().filter(|&&s| s < 0.95).count();
     Ok(format!(
-        "ssim={ssim:.4} trees={n} coverage_mean={mean:.4} coverage_p5={p5:.4} coverage_min={min:.4} below_95={below}"
+        "ssim={ssim:.4} flip={flip:.4} trees={n} coverage_mean={mean:.4} coverage_p5={p5:.4} coverage_min={min:.4} below_95={below}"
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn picture(seed: u8) -> RgbImage {
+        RgbImage::from_fn(32, 24, |x, y| {
+            image::Rgb([(x * 8) as u8, (y * 10) as u8 ^ seed, seed])
+        })
+    }
+
+    #[test]
+    fn identical_pictures_differ_by_nothing_and_a_changed_one_by_its_share() {
+        let a = picture(0);
+        let mut b = a.clone();
+        assert_eq!((changed_share(&a, &b), flip(&a, &b)), (0.0, 0.0));
+        for x in 0..8 {
+            b.put_pixel(x, 0, image::Rgb([255, 255, 255]));
+        }
+        assert!((changed_share(&a, &b) - 8.0 / (32.0 * 24.0)).abs() < 1e-9);
+        assert!(flip(&a, &b) > 0.0);
+        assert!(flip(&a, &picture(200)) > flip(&a, &b), "more change, more error");
+    }
+
+    #[test]
+    fn shimmer_needs_two_frames_of_one_size() {
+        let dir = std::env::temp_dir().join(format!("sherwood-shimmer-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = |name: &str| dir.join(name);
+        picture(0).save(path("a.png")).unwrap();
+        picture(0).save(path("b.png")).unwrap();
+        picture(9).save(path("c.png")).unwrap();
+        RgbImage::new(4, 4).save(path("small.png")).unwrap();
+        let line = shimmer(&[path("a.png"), path("b.png"), path("c.png")]).unwrap();
+        assert!(line.starts_with("pairs=2 changed_mean="), "{line}");
+        assert!(!line.contains("changed_max=0.000000"), "{line}");
+        assert!(shimmer(&[path("a.png")]).is_err());
+        assert!(shimmer(&[path("a.png"), path("small.png")]).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

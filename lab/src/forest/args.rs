@@ -66,6 +66,10 @@ pub struct Args {
     /// Decide far trees again only every N frames, in turn (Robin Hood; 1: every frame).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub far_refresh: u32,
+    /// Hand out anew every frame, even while the scene is still (the paper's behaviour;
+    /// by default a still scene keeps its selection: `SteadySelection`).
+    #[arg(long)]
+    pub no_steady: bool,
     /// The value function.
     #[arg(long, value_enum, default_value_t = Value::P11)]
     pub value: Value,
