@@ -37,7 +37,8 @@ pub struct SteadySelection {
     pub value_change: f32,
     /// Over how many frames the kept selection's fit is smoothed (an exponential
     /// average): the learned costs move a few percent a frame with the machine's noise,
-    /// a change of its speed lasts. Default: `8`.
+    /// a change of its speed lasts (a lasting 15% change leaves the default band in 2
+    /// frames). Default: `8`.
     pub smoothing_frames: f32,
 }
 
@@ -51,7 +52,10 @@ impl SteadySelection {
     };
 
     /// Keep a still scene's selection while its smoothed fit stays within ±3% (the
-    /// default).
+    /// default). A wider band keeps more frames (on lavapipe at a still camera ±5% over
+    /// 16 frames kept 67–70 of 70 where this keeps 64–66: `sherwood-lab forest
+    /// --steady-band`) but lets a kept selection sit further below the aim, and the tail
+    /// goal then leaves fewer frames over than it promises (time unused).
     pub const KEEP_WHILE_STILL: Self = Self {
         below: 0.03,
         above: 0.03,
@@ -168,13 +172,13 @@ mod tests {
     fn noise_is_smoothed_and_a_lasting_change_leaves_the_band_within_a_few_frames() {
         let steady = SteadySelection::KEEP_WHILE_STILL;
         let mut fit = steady.fit(1.0, 1.0).unwrap();
-        // Alternating ±6%: each frame alone would leave the band.
+        // Alternating ±8%: each frame alone would leave the band.
         for k in 0..40 {
-            let price = if k % 2 == 0 { 1.06 } else { 0.94 };
+            let price = if k % 2 == 0 { 1.08 } else { 0.92 };
             assert!(steady.keeps(&mut fit, price, 1.0), "frame {k}");
         }
         // The machine 15% slower from now on.
-        let left = (1..=10).find(|_| !steady.keeps(&mut fit, 1.15, 1.0));
+        let left = (1..=20).find(|_| !steady.keeps(&mut fit, 1.15, 1.0));
         assert!(left.is_some_and(|k| k <= 3), "{left:?}");
     }
 

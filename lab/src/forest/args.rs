@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use bevy::prelude::Resource;
 use bevy_sherwood::cost::CalibrationChoice;
-use bevy_sherwood::lod::StrategyKind;
+use bevy_sherwood::lod::{SteadySelection, StrategyKind};
 use bevy_sherwood::prelude::{FrameGoal, LodMode, ValueFunction};
 use clap::ValueEnum;
 
@@ -70,6 +70,13 @@ pub struct Args {
     /// by default a still scene keeps its selection: `SteadySelection`).
     #[arg(long)]
     pub no_steady: bool,
+    /// A still scene keeps its selection while its smoothed fit stays within ±F of the
+    /// fresh hand-out's (`SteadySelection::below` and `above`; default: the crate's).
+    #[arg(long, value_name = "F", value_parser = share, allow_negative_numbers = true, conflicts_with = "no_steady")]
+    pub steady_band: Option<f32>,
+    /// Over how many frames a kept selection's fit is smoothed (default: the crate's).
+    #[arg(long, value_name = "N", value_parser = positive, allow_negative_numbers = true, conflicts_with = "no_steady")]
+    pub steady_frames: Option<f32>,
     /// The value function.
     #[arg(long, value_enum, default_value_t = Value::P11)]
     pub value: Value,
@@ -153,6 +160,20 @@ With --meshes, --summary adds levels=a/b/..: the mean over the measured frames o
 ladder entities in view showing each level, best first.";
 
 impl Args {
+    /// How a still scene keeps its selection.
+    pub fn steady(&self) -> SteadySelection {
+        if self.no_steady {
+            return SteadySelection::OFF;
+        }
+        let default = SteadySelection::default();
+        SteadySelection {
+            below: self.steady_band.unwrap_or(default.below),
+            above: self.steady_band.unwrap_or(default.above),
+            smoothing_frames: self.steady_frames.unwrap_or(default.smoothing_frames),
+            ..default
+        }
+    }
+
     /// Frames the camera path takes, when walking one.
     pub fn path_length(&self) -> Option<u32> {
         self.path.map(|p| self.path_frames.unwrap_or(p.frames()))
@@ -359,6 +380,7 @@ mod tests {
         );
         assert_eq!(a.goal.frame_goal(), FrameGoal::default());
         assert_eq!((a.headroom, a.far_refresh), (1.0, 1));
+        assert_eq!(a.steady(), SteadySelection::default());
         assert_eq!(a.calibration_choice(), CalibrationChoice::Adapter);
         assert!(a.path.is_none() && a.frame_limit().is_none() && a.screenshot.is_none());
     }
@@ -411,6 +433,16 @@ mod tests {
     }
 
     #[test]
+    fn the_steady_flags_set_the_band_and_the_smoothing() {
+        let a = parse(&["--steady-band", "0.05", "--steady-frames", "16"]).unwrap();
+        let steady = a.steady();
+        assert_eq!((steady.below, steady.above), (0.05, 0.05));
+        assert_eq!(steady.smoothing_frames, 16.0);
+        assert_eq!(parse(&["--no-steady"]).unwrap().steady(), SteadySelection::OFF);
+        assert!(parse(&["--no-steady", "--steady-band", "0.05"]).is_err());
+    }
+
+    #[test]
     fn the_names_a_record_writes_parse_back() {
         for mode in Mode::value_variants() {
             assert_eq!(Mode::from_str(&Mode::name_of(mode.lod()), false), Ok(*mode));
@@ -439,6 +471,8 @@ mod tests {
             (&["--path", "circle"], "--path"),
             (&["--strategy", "robin"], "--strategy"),
             (&["--at-frame", "x", "--screenshot", "a.png"], "--at-frame"),
+            (&["--steady-band", "2"], "--steady-band"),
+            (&["--steady-frames", "0"], "--steady-frames"),
         ] {
             let e = parse(flags)
                 .err()

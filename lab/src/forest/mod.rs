@@ -13,7 +13,7 @@ use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
 use bevy_sherwood::cost::CostSettings;
-use bevy_sherwood::lod::{BenefitReport, SteadySelection};
+use bevy_sherwood::lod::BenefitReport;
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::{
     CalibrationProgress, CalibrationRunPlugin, CalibrationRunSystems, CalibrationSettings,
@@ -66,11 +66,7 @@ pub fn run(mut args: Args) -> AppExit {
         strategy: args.strategy.kind(),
         value: args.value.function(),
         far_refresh: args.far_refresh,
-        steady: if args.no_steady {
-            SteadySelection::OFF
-        } else {
-            SteadySelection::default()
-        },
+        steady: args.steady(),
         ..default()
     })
     .insert_resource(BenefitReport {
