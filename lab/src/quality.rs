@@ -119,7 +119,10 @@ fn shimmer(frames: &[PathBuf]) -> Result<String, String> {
     if pictures.len() < 2 {
         return Err("shimmer: at least two frames".into());
     }
-    if pictures.iter().any(|p| p.dimensions() != pictures[0].dimensions()) {
+    if pictures
+        .iter()
+        .any(|p| p.dimensions() != pictures[0].dimensions())
+    {
         return Err("shimmer: the frames must have the same size".into());
     }
     let pairs = pictures.windows(2);
@@ -260,7 +263,10 @@ mod tests {
         }
         assert!((changed_share(&a, &b) - 8.0 / (32.0 * 24.0)).abs() < 1e-9);
         assert!(flip(&a, &b) > 0.0);
-        assert!(flip(&a, &picture(200)) > flip(&a, &b), "more change, more error");
+        assert!(
+            flip(&a, &picture(200)) > flip(&a, &b),
+            "more change, more error"
+        );
     }
 
     #[test]

@@ -119,16 +119,19 @@ impl KeptHandOut {
     ) -> Option<(Outcome, Selection, Option<(f32, f32)>, Vec<Option<u32>>)> {
         let outcome = self.repriced(scales);
         let price = outcome.stats.used;
-        budget.steady.keeps(&mut self.fit, price, rendering).then(|| {
-            let selection = Selection {
-                drawn: outcome.drawn,
-                predicted: outcome.stats.used,
-                counts: self.counts,
-                visible_instances: visible.instances_in_view(),
-                trees_drawn: self.trees_drawn,
-            };
-            (outcome, selection, self.score, self.mesh_levels.clone())
-        })
+        budget
+            .steady
+            .keeps(&mut self.fit, price, rendering)
+            .then(|| {
+                let selection = Selection {
+                    drawn: outcome.drawn,
+                    predicted: outcome.stats.used,
+                    counts: self.counts,
+                    visible_instances: visible.instances_in_view(),
+                    trees_drawn: self.trees_drawn,
+                };
+                (outcome, selection, self.score, self.mesh_levels.clone())
+            })
     }
 
     /// The kept outcome priced at this frame's learned costs.
@@ -337,24 +340,26 @@ pub(super) fn hand_out_time(
     });
     if !selection_kept {
         let fit = budget.steady.fit(outcome.stats.used, rendering);
-        state.kept = fit.filter(|_| keeping && !outcome.settling).map(|fit| KeptHandOut {
-            budget: budget.clone(),
-            view: visible.view,
-            objects: identities(&visible, &ladders.entries).collect(),
-            calibrated: by_family(
-                selection.drawn,
-                selection.predicted,
-                selection.counts,
-                &costs,
-            )
-            .unscaled(scales),
-            outcome: outcome.clone(),
-            mesh_levels: ladders.chosen.clone(),
-            counts: selection.counts,
-            trees_drawn: selection.trees_drawn,
-            score: score.map(|(benefit, bound, _)| (benefit, bound)),
-            fit,
-        });
+        state.kept = fit
+            .filter(|_| keeping && !outcome.settling)
+            .map(|fit| KeptHandOut {
+                budget: budget.clone(),
+                view: visible.view,
+                objects: identities(&visible, &ladders.entries).collect(),
+                calibrated: by_family(
+                    selection.drawn,
+                    selection.predicted,
+                    selection.counts,
+                    &costs,
+                )
+                .unscaled(scales),
+                outcome: outcome.clone(),
+                mesh_levels: ladders.chosen.clone(),
+                counts: selection.counts,
+                trees_drawn: selection.trees_drawn,
+                score: score.map(|(benefit, bound, _)| (benefit, bound)),
+                fit,
+            });
     }
     let priced = record_prediction(&mut cost_model, &clock, &times, &costs, &selection);
     let (benefit, benefit_bound, report_time) = score.unwrap_or_default();

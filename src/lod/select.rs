@@ -862,13 +862,75 @@ enum TclodChoice {
     Split(u32),
     /// Only this many far points (at least one) at the largest size.
     FarPoints { size: u32, count: u32 },
+    /// Only this many far leaves as triangles (TC's choice), where they show more of the
+    /// leaves than the points would.
+    Triangles(u32),
 }
 
-/// TCLOD's decision for `n` leaves projecting `area` pixels: the smallest point size (best
-/// quality) whose static split fits; at the largest size, only the far points that fit,
-/// at least one. No point is larger than an average of the leaves' `groups` groups on
-/// screen.
+impl TclodChoice {
+    /// How much of `n` leaves projecting `area` pixels this choice shows, pixels: the
+    /// leaves drawn as triangles, exactly; the pixels points cover, discounted by how
+    /// much larger than a leaf each point is on screen (a disc of four leaves' size
+    /// stands for their area, not their shapes; a pixel is the finest detail there is).
+    fn shown(self, n: u32, area: f32) -> f32 {
+        let leaf_area = area / n.max(1) as f32;
+        let leaf_size = leaf_area.sqrt().max(1.0);
+        let points = |count: u32, size: u32, room: f32| {
+            let s = size.max(1) as f32;
+            (count as f32 * s * s).min(room.max(0.0)) * (leaf_size / s).min(1.0)
+        };
+        match self {
+            Self::Full => area,
+            Self::Triangles(count) => count.min(n) as f32 * leaf_area,
+            Self::FarPoints { size, count } => points(count, size, area),
+            Self::Split(size) => {
+                let (count, _, tris) = static_split(n, area, size);
+                let triangles = tris as f32 * leaf_area;
+                triangles + points(count, size, area - triangles)
+            }
+        }
+    }
+}
+
+/// TCLOD's decision for `n` leaves projecting `area` pixels in `groups` groups, given
+/// `time`: [`points_choice`], unless TC's choice — as many far leaves as triangles as fit,
+/// at least one a group — fits and [shows](TclodChoice::shown) at least as much of the
+/// leaves. Where leaves are large on screen and points cost more than the leaves they
+/// stand for, points would show less for the same time (issue #42: a near view's leaves
+/// as 10–20 px discs that cost more than the triangles they replaced).
 fn tclod_choice(
+    n: u32,
+    area: f32,
+    groups: u32,
+    triangle_leaf: f32,
+    costs: &PrimitiveCosts,
+    sizes: PixelRange,
+    time: f32,
+) -> (TclodChoice, Selected) {
+    let points = points_choice(n, area, groups, triangle_leaf, costs, sizes, time);
+    if points.0 == TclodChoice::Full || triangle_leaf <= 0.0 {
+        return points;
+    }
+    let affordable = (time / triangle_leaf).min(n as f32) as u32;
+    let triangles = TclodChoice::Triangles(affordable);
+    if affordable >= groups.max(1) && triangles.shown(n, area) >= points.0.shown(n, area) {
+        let cost = triangle_leaf * affordable as f32;
+        return (
+            triangles,
+            Selected {
+                cost,
+                ..Selected::default()
+            },
+        );
+    }
+    points
+}
+
+/// TCLOD's decision by points for `n` leaves projecting `area` pixels: the smallest point
+/// size (best quality) whose static split fits; at the largest size, only the far points
+/// that fit, at least one. No point is larger than an average of the leaves' `groups`
+/// groups on screen.
+fn points_choice(
     n: u32,
     area: f32,
     groups: u32,
@@ -972,6 +1034,7 @@ fn group_tclod(
             write_group(leaves, points, far, tris, size, out);
         }
         TclodChoice::FarPoints { size, count } => write_group(leaves, count, true, 0, size, out),
+        TclodChoice::Triangles(count) => write_group(leaves, 0, true, count, 1, out),
     }
     selected
 }
@@ -1097,6 +1160,7 @@ pub(crate) fn leaves_at_depth(
                     (points, tris, size)
                 }
                 (TclodChoice::FarPoints { size, count }, _) => (count, 0, size),
+                (TclodChoice::Triangles(count), _) => (0, count, 1),
             }
         }
     };

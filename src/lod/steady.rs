@@ -103,7 +103,11 @@ impl SteadySelection {
 
 /// A share in `[0, 1]`; one that is not finite counts as 0.
 fn share(s: f32) -> f32 {
-    if s.is_finite() { s.clamp(0.0, 1.0) } else { 0.0 }
+    if s.is_finite() {
+        s.clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
 }
 
 impl Default for SteadySelection {
@@ -152,7 +156,10 @@ mod tests {
         assert!(kept(1.0, 1.0) && kept(1.0, 0.975) && kept(1.0, 1.025));
         assert!(!kept(1.0, 0.96), "too much time left unused");
         assert!(!kept(1.0, 1.04), "a predicted overrun");
-        assert!(kept(0.5, 0.49), "a hand-out that could not use the time keeps");
+        assert!(
+            kept(0.5, 0.49),
+            "a hand-out that could not use the time keeps"
+        );
         assert!(!kept(0.5, 0.45));
         assert!(kept(1.2, 1.22), "nor could one whose cheapest overran");
         assert!(!kept(1.0, f32::NAN));

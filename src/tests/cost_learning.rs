@@ -576,13 +576,15 @@ fn the_overlap_of_the_two_worlds_is_learned_from_the_frames() {
 }
 
 /// Frames of `goal` at a 60 ms target on a machine whose frame times scatter
-/// log-normally around the prediction by `sigma(k)` in frame `k`: per frame, whether it
-/// was longer than 1.1 × target, and what its work was aimed at (ms).
+/// log-normally around the prediction by `sigma(k)` in frame `k`, a still scene kept by
+/// `steady`: per frame, whether it was longer than 1.1 × target, what its work was aimed
+/// at and how long it took (ms).
 fn frames_under_noise(
     goal: FrameGoal,
+    steady: SteadySelection,
     frames: u32,
     sigma: impl Fn(u32) -> f32 + 'static,
-) -> Vec<(bool, f32)> {
+) -> Vec<(bool, f32, f32)> {
     let target = 0.060;
     let (mut app, size) = app(Calibration::default());
     common::look_from(
@@ -594,6 +596,7 @@ fn frames_under_noise(
         let mut budget = app.world_mut().resource_mut::<FrameBudget>();
         budget.target_ms = target * 1000.0;
         budget.goal = goal;
+        budget.steady = steady;
     }
     let mut uniform = common::unit_noise();
     // A standard normal, by Box–Muller.
@@ -614,37 +617,74 @@ fn frames_under_noise(
         .map(|_| {
             let (_, sample) = driver.frame(&mut app, &MACHINE);
             let aimed = app.world().resource::<LodDiagnostics>().work_target_ms;
-            (sample.interval > 1.1 * target, aimed)
+            (
+                sample.interval > 1.1 * target,
+                aimed,
+                sample.interval * 1000.0,
+            )
         })
         .collect()
 }
 
 /// The share of `frames` that were over.
-fn share_over(frames: &[(bool, f32)]) -> f32 {
-    frames.iter().filter(|(over, _)| *over).count() as f32 / frames.len() as f32
+fn share_over(frames: &[(bool, f32, f32)]) -> f32 {
+    frames.iter().filter(|(over, ..)| *over).count() as f32 / frames.len() as f32
 }
 
 /// The mean work target of `frames`, ms.
-fn mean_aim(frames: &[(bool, f32)]) -> f32 {
-    frames.iter().map(|(_, aim)| aim).sum::<f32>() / frames.len() as f32
+fn mean_aim(frames: &[(bool, f32, f32)]) -> f32 {
+    frames.iter().map(|(_, aim, _)| aim).sum::<f32>() / frames.len() as f32
+}
+
+/// The mean frame time of `frames`, ms.
+fn mean_frame(frames: &[(bool, f32, f32)]) -> f32 {
+    frames.iter().map(|(.., ms)| ms).sum::<f32>() / frames.len() as f32
 }
 
 /// The default goal holds its tail: with frame times scattered log-normally around their
 /// prediction, about its share of frames (5%) is longer than 1.1 × target once the
-/// scatter is learned, on a quiet and on a noisy machine; the paper's mean goal, aimed
-/// at the target itself, leaves more over on the noisy one.
+/// scatter is learned, on a quiet and on a noisy machine, when every frame is handed out
+/// anew; the paper's mean goal, aimed at the target itself, leaves more over on the
+/// noisy one. A still scene that keeps its selection (the default) keeps the promise
+/// too, at most 7% over, and gives up at most its band's 3% of the frame time for it (a
+/// kept selection may sit below the aim, and then fewer frames are over).
 #[test]
 fn the_tail_goal_keeps_its_share_of_frames_over_the_slack() {
     for sigma in [0.03, 0.10] {
-        let share =
-            share_over(&frames_under_noise(FrameGoal::default(), 1600, move |_| sigma)[400..]);
+        let every_frame = frames_under_noise(
+            FrameGoal::default(),
+            SteadySelection::OFF,
+            1600,
+            move |_| sigma,
+        );
+        let share = share_over(&every_frame[400..]);
         assert!(
             (0.03..=0.07).contains(&share),
             "σ = {sigma}: {:.1}% of frames over 1.1 × target",
             share * 100.0
         );
+        let kept = frames_under_noise(
+            FrameGoal::default(),
+            SteadySelection::default(),
+            1600,
+            move |_| sigma,
+        );
+        let (share, mean) = (share_over(&kept[400..]), mean_frame(&kept[400..]));
+        let fresh = mean_frame(&every_frame[400..]);
+        eprintln!(
+            "σ = {sigma}, kept: {:.1}% over, {mean:.2} ms against {fresh:.2} ms",
+            share * 100.0
+        );
+        assert!(
+            share <= 0.07 && mean >= 0.97 * fresh,
+            "σ = {sigma}, a still scene kept: {:.1}% of frames over 1.1 × target, \
+             {mean:.2} ms a frame against {fresh:.2} ms handed out every frame",
+            share * 100.0
+        );
     }
-    let mean = share_over(&frames_under_noise(FrameGoal::Mean, 1600, |_| 0.10)[400..]);
+    let mean = share_over(
+        &frames_under_noise(FrameGoal::Mean, SteadySelection::OFF, 1600, |_| 0.10)[400..],
+    );
     assert!(
         mean >= 0.10,
         "the mean goal: {:.1}% of frames over 1.1 × target",
@@ -652,7 +692,8 @@ fn the_tail_goal_keeps_its_share_of_frames_over_the_slack() {
     );
 }
 
-/// A regime switch: the machine's scatter jumps from 3% to 12% and falls back. In each
+/// A regime switch: the machine's scatter jumps from 3% to 12% and falls back (every
+/// frame handed out anew, as in a moving scene). In each
 /// settled stretch the tail goal keeps its share over (5% ± 2 points); the work is aimed
 /// lower while the scatter is high (over a third of the way there within a second — 17
 /// frames of 60 ms — most of it within three) and higher again once it falls (more
@@ -666,7 +707,7 @@ fn the_tail_goal_follows_a_regime_switch_of_the_machine_s_scatter() {
             0.03
         }
     };
-    let frames = frames_under_noise(FrameGoal::default(), 3600, sigma);
+    let frames = frames_under_noise(FrameGoal::default(), SteadySelection::OFF, 3600, sigma);
     let (quiet, noisy, quiet_again) = (&frames[300..1200], &frames[1500..2400], &frames[2700..]);
     for (name, stretch) in [
         ("quiet", quiet),

@@ -535,3 +535,86 @@ fn full_detail_whenever_the_time_pays_for_it_and_the_floor_with_none() {
         }
     }
 }
+
+/// Leaf triangles drawn by `list`, and leaves drawn as points.
+fn leaf_counts(list: &TreeDrawList) -> (u32, u32) {
+    let triangles = list.leaf_triangles.iter().map(|r| r.end - r.start).sum();
+    let points = list.leaf_points.iter().map(|r| r.leaves.len() as u32).sum();
+    (triangles, points)
+}
+
+/// Where leaves are large on screen and a point costs four times the leaf it stands for
+/// (lavapipe's learned costs), TCLOD draws what TC draws with the same time: as many leaf
+/// triangles, no points. Where leaves are a pixel or less, it draws points, and covers
+/// more of the tree than TC's few leaves.
+#[test]
+fn tclod_takes_tc_s_leaves_where_its_points_would_show_less() {
+    let model = model();
+    let mut costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    let per_leaf = model.leaf_triangle_count() as f32 / model.leaves.len() as f32;
+    costs.point = vec![4.0 * costs.triangle * per_leaf; costs.point.len()];
+    let leaf_pixels = |depth: f32| group_area(&model, &view(depth), 1, depth);
+    let near = [1.0, 2.0, 3.0, 5.0, 8.0]
+        .into_iter()
+        .find(|&d| (30.0..400.0).contains(&leaf_pixels(d)))
+        .expect("a depth where a leaf covers 30–400 px");
+    let far = [300.0, 600.0, 1200.0]
+        .into_iter()
+        .find(|&d| leaf_pixels(d) < 0.5)
+        .expect("a depth where a leaf is under a pixel");
+    let tclod = LeafMethod::Tclod(PixelRange::default());
+    for (depth, share) in [(near, 0.6), (near, 0.9)] {
+        let (v, g) = (view(depth), groups(&model, depth));
+        let mut list = TreeDrawList::default();
+        let full = leaves(&model, &v, &costs, LeafMethod::Full, &g, 0.0, &mut list).cost;
+        leaves(
+            &model,
+            &v,
+            &costs,
+            LeafMethod::Tc,
+            &g,
+            share * full,
+            &mut list,
+        );
+        let tc = leaf_counts(&list);
+        assert!(tc.0 as f32 > 0.5 * model.leaves.len() as f32, "{tc:?}");
+        let s = leaves(&model, &v, &costs, tclod, &g, share * full, &mut list);
+        let ours = leaf_counts(&list);
+        assert!(s.cost <= share * full * 1.0001, "{s:?}");
+        // (Within a leaf in a hundred: each group rounds its share down to whole leaves,
+        // and the two methods' groups are paid different floors first.)
+        assert!(
+            ours.0 as f32 >= 0.99 * tc.0 as f32 && ours.1 == 0,
+            "at depth {depth}, {share} of full detail: TCLOD drew {ours:?} (triangles, points), TC {tc:?}"
+        );
+    }
+    // Pixels covered: leaves as triangles their own area, points their size squared
+    // (the far tree's leaves together cover far more than either).
+    let (v, g) = (view(far), groups(&model, far));
+    let covered = |list: &TreeDrawList| {
+        let points: f32 = list
+            .leaf_points
+            .iter()
+            .map(|r| (r.leaves.len() as u32 * r.size * r.size) as f32)
+            .sum();
+        leaf_counts(list).0 as f32 * leaf_pixels(far) + points
+    };
+    let mut list = TreeDrawList::default();
+    let full = leaves(&model, &v, &costs, LeafMethod::Full, &g, 0.0, &mut list).cost;
+    leaves(
+        &model,
+        &v,
+        &costs,
+        LeafMethod::Tc,
+        &g,
+        full / 8.0,
+        &mut list,
+    );
+    let tc = covered(&list);
+    leaves(&model, &v, &costs, tclod, &g, full / 8.0, &mut list);
+    let ours = covered(&list);
+    assert!(
+        ours > 1.5 * tc,
+        "a far tree at ⅛ of full detail: TCLOD covered {ours} px, TC {tc} px"
+    );
+}

@@ -438,7 +438,10 @@ mod tests {
         let steady = a.steady();
         assert_eq!((steady.below, steady.above), (0.05, 0.05));
         assert_eq!(steady.smoothing_frames, 16.0);
-        assert_eq!(parse(&["--no-steady"]).unwrap().steady(), SteadySelection::OFF);
+        assert_eq!(
+            parse(&["--no-steady"]).unwrap().steady(),
+            SteadySelection::OFF
+        );
         assert!(parse(&["--no-steady", "--steady-band", "0.05"]).is_err());
     }
 
