@@ -563,19 +563,24 @@ fn tclod_takes_tc_s_leaves_where_its_points_would_show_less() {
         .find(|&d| leaf_pixels(d) < 0.5)
         .expect("a depth where a leaf is under a pixel");
     let tclod = LeafMethod::Tclod(PixelRange::default());
-    for (depth, share) in [(near, 0.6), (near, 0.9)] {
-        let (v, g) = (view(depth), groups(&model, depth));
+    // The leaves' full-detail cost, and TC's leaves with `share` of it.
+    let tc_at = |v: &TreeView, g: &[VisibleLeafGroup], share: f32| {
         let mut list = TreeDrawList::default();
-        let full = leaves(&model, &v, &costs, LeafMethod::Full, &g, 0.0, &mut list).cost;
+        let full = leaves(&model, v, &costs, LeafMethod::Full, g, 0.0, &mut list).cost;
         leaves(
             &model,
-            &v,
+            v,
             &costs,
             LeafMethod::Tc,
-            &g,
+            g,
             share * full,
             &mut list,
         );
+        (full, list)
+    };
+    for (depth, share) in [(near, 0.6), (near, 0.9)] {
+        let (v, g) = (view(depth), groups(&model, depth));
+        let (full, mut list) = tc_at(&v, &g, share);
         let tc = leaf_counts(&list);
         assert!(tc.0 as f32 > 0.5 * model.leaves.len() as f32, "{tc:?}");
         let s = leaves(&model, &v, &costs, tclod, &g, share * full, &mut list);
@@ -599,17 +604,7 @@ fn tclod_takes_tc_s_leaves_where_its_points_would_show_less() {
             .sum();
         leaf_counts(list).0 as f32 * leaf_pixels(far) + points
     };
-    let mut list = TreeDrawList::default();
-    let full = leaves(&model, &v, &costs, LeafMethod::Full, &g, 0.0, &mut list).cost;
-    leaves(
-        &model,
-        &v,
-        &costs,
-        LeafMethod::Tc,
-        &g,
-        full / 8.0,
-        &mut list,
-    );
+    let (full, mut list) = tc_at(&v, &g, 1.0 / 8.0);
     let tc = covered(&list);
     leaves(&model, &v, &costs, tclod, &g, full / 8.0, &mut list);
     let ours = covered(&list);
