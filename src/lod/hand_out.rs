@@ -14,10 +14,10 @@ use super::search::{self, Choices, ObjectSearch};
 use super::select::{PrimitiveCosts, Selected};
 use super::steady;
 use super::strategy::{self, HandOut, Outcome, Scene, Strategies};
-use super::value::{FarDecisions, Part, VisibleObjects};
+use super::value::{FarDecisions, Object, Part, VisibleObjects};
 use super::{
     AppMeshLoad, BenefitReport, FrameBudget, HierarchicalCut, LadderEntry, LadderObjects,
-    LodDiagnostics, StrategyKind,
+    LodDiagnostics, SteadySelection, StrategyKind,
 };
 use crate::budget::{Allocation, oracle};
 use crate::cost::{
@@ -58,6 +58,9 @@ pub(super) struct BudgetState {
     target: TargetWatch,
     /// The last fresh hand-out, for a still scene to keep ([`FrameBudget::steady`]).
     kept: Option<KeptHandOut>,
+    /// Per object, what this frame's hand-out drew.
+    drawn: Vec<Selected>,
+    blend: BlendScratch,
 }
 
 /// A hand-out and the scene it was made for, kept while the scene stays still and the
@@ -78,6 +81,9 @@ struct KeptHandOut {
     score: Option<(f32, f32)>,
     /// Its price over the rendering time, as handed out and smoothed since.
     fit: steady::Fit,
+    /// Per visible tree, its list; per object, what it drew (at the hand-out's costs).
+    lists: Vec<TreeDrawList>,
+    drawn: Vec<Selected>,
 }
 
 impl KeptHandOut {
@@ -149,6 +155,86 @@ impl KeptHandOut {
         outcome.stats.used = now.total();
         outcome
     }
+
+    /// This frame's fresh hand-out (`lists`, `drawn`, `outcome`) for the still scene
+    /// this one was kept for, blended with it: the trees whose change the price can do
+    /// without go back to what they drew ([`steady::restore_least_changed`], within half
+    /// the steadiness band around `rendering`). Group impostors are not blended.
+    fn blend_into(&self, fresh: Fresh, state: &mut BlendScratch, scales: FamilyScales) {
+        let Fresh {
+            objects,
+            lists,
+            drawn,
+            outcome,
+            rendering,
+            steady,
+        } = fresh;
+        let ratio = self.repriced(scales).stats.used / self.outcome.stats.used;
+        if outcome.impostors_drawn > 0
+            || self.outcome.impostors_drawn > 0
+            || self.lists.len() != lists.len()
+            || self.drawn.len() != drawn.len()
+            || objects.len() != drawn.len()
+            || !(ratio.is_finite() && ratio > 0.0)
+        {
+            return;
+        }
+        // (Object, its tree) for the tree parts.
+        let parts = || {
+            objects
+                .iter()
+                .enumerate()
+                .filter(|(_, o)| o.part != Part::Mesh)
+                .map(|(i, o)| (i, o.index as usize))
+        };
+        state.changes.clear();
+        state.changes.resize(lists.len(), (0.0, 0.0));
+        for (i, tree) in parts() {
+            state.changes[tree].0 += self.drawn[i].cost * ratio;
+            state.changes[tree].1 += drawn[i].cost;
+        }
+        let blended = steady::restore_least_changed(
+            &state.changes,
+            outcome.stats.used,
+            steady.blend_band(rendering),
+            &mut state.order,
+            &mut state.restore,
+        );
+        for (tree, list) in lists.iter_mut().enumerate() {
+            if state.restore[tree] && *list != self.lists[tree] {
+                list.clone_from(&self.lists[tree]);
+            }
+        }
+        for (i, tree) in parts() {
+            if state.restore[tree] {
+                let kept = steady::scaled(self.drawn[i], ratio);
+                outcome.drawn = steady::shifted(outcome.drawn, drawn[i], kept);
+                drawn[i] = kept;
+            }
+        }
+        let stats = &mut outcome.stats;
+        stats.used = blended;
+        stats.wasted = (stats.rendering_time - blended).max(0.0);
+        stats.overrun = (blended - stats.rendering_time).max(0.0);
+    }
+}
+
+/// A fresh hand-out, to blend with a kept one.
+struct Fresh<'a> {
+    objects: &'a [Object],
+    lists: &'a mut [TreeDrawList],
+    drawn: &'a mut [Selected],
+    outcome: &'a mut Outcome,
+    rendering: f32,
+    steady: SteadySelection,
+}
+
+/// The blend's scratch: per tree the kept and the fresh cost, an order, what to restore.
+#[derive(Default)]
+struct BlendScratch {
+    changes: Vec<(f32, f32)>,
+    order: Vec<u32>,
+    restore: Vec<bool>,
 }
 
 /// Per visible object, its entity, part and value.
@@ -273,15 +359,18 @@ pub(super) fn hand_out_time(
     let keeping = time_critical && !far.holding();
     let scales = cost_model.family_scales();
     let rendering = (times.rendering - visible.held_parts.cost).max(0.0);
+    let still = keeping
+        && state
+            .kept
+            .as_ref()
+            .is_some_and(|kept| kept.is_still(&budget, &visible, &ladders.entries, report.enabled));
     let kept = state
         .kept
         .as_mut()
-        .filter(|kept| {
-            keeping && kept.is_still(&budget, &visible, &ladders.entries, report.enabled)
-        })
+        .filter(|_| still)
         .and_then(|kept| kept.reused(&budget, &visible, scales, rendering));
     let selection_kept = kept.is_some();
-    let (outcome, score, selection) = match kept {
+    let (mut outcome, score, selection) = match kept {
         Some((outcome, selection, score, mesh_levels)) => {
             ladders.chosen = mesh_levels;
             let score = score.map(|(benefit, bound)| (benefit, bound, Duration::ZERO));
@@ -302,9 +391,17 @@ pub(super) fn hand_out_time(
                 impostors: impostor_lists,
                 ..
             } = &mut *chosen;
+            state.drawn.clear();
+            state
+                .drawn
+                .resize(visible.objects.len(), Selected::default());
             let mut hand_out = HandOut {
                 search: &search,
-                choices: Choices { lists, mesh_levels },
+                choices: Choices {
+                    lists,
+                    mesh_levels,
+                    drawn: &mut state.drawn,
+                },
                 values: &visible.values,
                 complexities: &visible.complexities,
                 rendering,
@@ -329,6 +426,22 @@ pub(super) fn hand_out_time(
             (outcome, score, None)
         }
     };
+    if still
+        && budget.steady.gradual
+        && !selection_kept
+        && score.is_none()
+        && let Some(kept) = &state.kept
+    {
+        let fresh = Fresh {
+            objects: &visible.objects,
+            lists: &mut chosen.trees,
+            drawn: &mut state.drawn,
+            outcome: &mut outcome,
+            rendering,
+            steady: budget.steady,
+        };
+        kept.blend_into(fresh, &mut state.blend, scales);
+    }
     let selection = selection.unwrap_or_else(|| {
         Selection::of(
             &visible,
@@ -340,6 +453,13 @@ pub(super) fn hand_out_time(
     });
     if !selection_kept {
         let fit = budget.steady.fit(outcome.stats.used, rendering);
+        let (mut lists, mut drawn) = state
+            .kept
+            .take()
+            .map(|kept| (kept.lists, kept.drawn))
+            .unwrap_or_default();
+        lists.clone_from(&chosen.trees);
+        drawn.clone_from(&state.drawn);
         state.kept = fit
             .filter(|_| keeping && !outcome.settling)
             .map(|fit| KeptHandOut {
@@ -359,6 +479,8 @@ pub(super) fn hand_out_time(
                 trees_drawn: selection.trees_drawn,
                 score: score.map(|(benefit, bound, _)| (benefit, bound)),
                 fit,
+                lists,
+                drawn,
             });
     }
     let priced = record_prediction(&mut cost_model, &clock, &times, &costs, &selection);

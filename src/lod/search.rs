@@ -259,6 +259,9 @@ pub(super) struct Choices<'a> {
     pub(super) lists: &'a mut [TreeDrawList],
     /// Per mesh-ladder entity, the level chosen (`None`: out of view).
     pub(super) mesh_levels: &'a mut [Option<u32>],
+    /// Per object, what its last search drew (a strategy that offers an object more
+    /// time replaces its earlier choice).
+    pub(super) drawn: &'a mut [select::Selected],
 }
 
 impl Choices<'_> {
@@ -271,13 +274,17 @@ impl Choices<'_> {
         time: f32,
     ) -> (select::Selected, Option<u32>) {
         let object = search.objects[i];
-        if object.part == Part::Mesh {
+        let (chosen, level) = if object.part == Part::Mesh {
             let (level, chosen) = search.mesh_level(object, time);
             self.mesh_levels[object.index as usize] = Some(level);
             (chosen, Some(level))
         } else {
             let list = &mut self.lists[object.index as usize];
             (search.search(i, time, list), None)
+        };
+        if let Some(slot) = self.drawn.get_mut(i) {
+            *slot = chosen;
         }
+        (chosen, level)
     }
 }

@@ -8,6 +8,7 @@
 use bevy::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::select::Selected;
 use crate::cost::{FamilyScales, FamilyTimes};
 
 /// How a still scene keeps its selection ([`FrameBudget::steady`](super::FrameBudget::steady)).
@@ -40,6 +41,12 @@ pub struct SteadySelection {
     /// a change of its speed lasts (a lasting 15% change leaves the default band in 2
     /// frames). Default: `8`.
     pub smoothing_frames: f32,
+    /// When a still scene's kept selection leaves its band, whether the new hand-out
+    /// changes only the trees the price needs: tree by tree, the smallest changes
+    /// first, a tree keeps what it drew while the price stays within half the band of
+    /// the rendering time. Otherwise every tree takes its fresh share (a drift of a few
+    /// percent then flips choices all over the picture at once). Default: `true`.
+    pub gradual: bool,
 }
 
 impl SteadySelection {
@@ -49,6 +56,7 @@ impl SteadySelection {
         above: 0.0,
         value_change: 0.0,
         smoothing_frames: 1.0,
+        gradual: false,
     };
 
     /// Keep a still scene's selection while its smoothed fit stays within ±3% (the
@@ -61,6 +69,7 @@ impl SteadySelection {
         above: 0.03,
         value_change: 0.02,
         smoothing_frames: 8.0,
+        gradual: true,
     };
 
     /// The fit of a fresh hand-out that costs `price` of `rendering`; `None` when there
@@ -89,6 +98,15 @@ impl SteadySelection {
         let (below, above) = (share(self.below), share(self.above));
         fit.smoothed >= (1.0 - below) * fit.fresh
             && fit.smoothed <= (1.0 + above) * fit.fresh.max(1.0)
+    }
+
+    /// Where a blend of a fresh hand-out with a kept one keeps its price: within half
+    /// the band around `rendering`, so that the blend is kept afterwards.
+    pub(crate) fn blend_band(&self, rendering: f32) -> (f32, f32) {
+        (
+            rendering * (1.0 - 0.5 * share(self.below)),
+            rendering * (1.0 + 0.5 * share(self.above)),
+        )
     }
 
     fn is_on(&self) -> bool {
@@ -122,6 +140,71 @@ impl Default for SteadySelection {
 pub(crate) struct Fit {
     fresh: f32,
     smoothed: f32,
+}
+
+/// How a still scene's fresh hand-out is blended with the selection it replaces (when the
+/// kept one left its band): tree by tree, the smallest changes first, a tree goes back to
+/// what the kept selection drew while the blended price stays within `[low, high]` (or
+/// no further from it than the fresh price). A drift of a few percent then changes the
+/// few trees that take it up instead of every tree whose share moved across a
+/// threshold.
+///
+/// `changes` holds per tree the kept drawing's cost at this frame's costs and the fresh
+/// one's; `restore` is set per tree; returns the blended price.
+pub(crate) fn restore_least_changed(
+    changes: &[(f32, f32)],
+    price: f32,
+    (low, high): (f32, f32),
+    order: &mut Vec<u32>,
+    restore: &mut Vec<bool>,
+) -> f32 {
+    restore.clear();
+    restore.resize(changes.len(), false);
+    order.clear();
+    order.extend((0..changes.len() as u32).filter(|&t| {
+        let (kept, fresh) = changes[t as usize];
+        (kept - fresh).is_finite()
+    }));
+    let change = |t: &u32| {
+        let (kept, fresh) = changes[*t as usize];
+        (kept - fresh).abs()
+    };
+    order.sort_by(|a, b| change(a).total_cmp(&change(b)));
+    let (low, high) = (low.min(price), high.max(price));
+    let mut blended = price;
+    for &t in order.iter() {
+        let (kept, fresh) = changes[t as usize];
+        let candidate = blended + kept - fresh;
+        if (low..=high).contains(&candidate) {
+            blended = candidate;
+            restore[t as usize] = true;
+        }
+    }
+    blended
+}
+
+/// `selected` with every time multiplied by `ratio`.
+pub(crate) fn scaled(selected: Selected, ratio: f32) -> Selected {
+    Selected {
+        cost: selected.cost * ratio,
+        lines: selected.lines * ratio,
+        points: selected.points * ratio,
+        meshes: selected.meshes * ratio,
+        mesh_pixels: selected.mesh_pixels * ratio,
+        ..selected
+    }
+}
+
+/// `total` with `from` replaced by `to`.
+pub(crate) fn shifted(total: Selected, from: Selected, to: Selected) -> Selected {
+    Selected {
+        cost: total.cost - from.cost + to.cost,
+        lines: total.lines - from.lines + to.lines,
+        points: total.points - from.points + to.points,
+        meshes: total.meshes - from.meshes + to.meshes,
+        mesh_pixels: total.mesh_pixels - from.mesh_pixels + to.mesh_pixels,
+        ..total
+    }
 }
 
 /// Each family's calibrated time multiplied by its learned factor: what a selection
@@ -197,6 +280,24 @@ mod tests {
         assert!(SteadySelection::OFF.same_value(3.0, 3.0));
         assert!(!SteadySelection::OFF.same_value(3.0, 3.0001));
         assert_eq!(SteadySelection::default(), steady);
+    }
+
+    #[test]
+    fn a_blend_restores_the_smallest_changes_while_the_price_stays_in_its_band() {
+        let (mut order, mut restore) = (Vec::new(), Vec::new());
+        // Four trees; the fresh hand-out cut 0.3 in all, mostly from tree 3.
+        let changes = [(1.0, 1.0), (1.0, 0.95), (1.0, 0.95), (2.0, 1.8)];
+        let price = changes.iter().map(|c| c.1).sum::<f32>();
+        let blended = restore_least_changed(&changes, price, (4.6, 4.81), &mut order, &mut restore);
+        assert_eq!(restore, [true, true, true, false], "{blended}");
+        assert!((blended - 4.8).abs() < 1e-5);
+        // A band that only the fresh hand-out fits restores only what costs nothing.
+        restore_least_changed(&changes, price, (price, price), &mut order, &mut restore);
+        assert_eq!(restore, [true, false, false, false]);
+        // A change that is not finite is never restored.
+        let odd = [(f32::NAN, 1.0), (1.0, 1.0)];
+        restore_least_changed(&odd, 2.0, (0.0, 10.0), &mut order, &mut restore);
+        assert_eq!(restore, [false, true]);
     }
 
     #[test]

@@ -798,6 +798,46 @@ fn list_changes_at_a_still_camera(steady: SteadySelection, frames: u32) -> (u32,
     (changes, app, size)
 }
 
+/// A still camera whose machine turns 10% slower: the kept selection leaves its band
+/// and is handed out anew within a few frames, and the new selection fits; gradually
+/// (the default), only the trees the price needs change, at most half as many as when
+/// every tree takes its fresh share.
+#[test]
+fn a_still_camera_on_a_slower_machine_changes_only_the_trees_the_price_needs() {
+    let _measuring = common::measuring();
+    let changed_trees = |gradual: bool| {
+        let steady = SteadySelection {
+            gradual,
+            ..SteadySelection::default()
+        };
+        let (_, mut app, _) = list_changes_at_a_still_camera(steady, 10);
+        let before = all_lists(&mut app);
+        let slower = Truth {
+            speed: 1.1,
+            ..MACHINE
+        };
+        let mut driver = Driver::new(0.0);
+        let changed = (0..40).find_map(|_| {
+            driver.frame(&mut app, &slower);
+            let lists = all_lists(&mut app);
+            (lists != before).then(|| lists.iter().zip(&before).filter(|(a, b)| a != b).count())
+        });
+        let d = app.world().resource::<LodDiagnostics>().clone();
+        let changed = changed.expect("a slower machine gets a new selection");
+        assert!(
+            d.predicted_render_ms - d.render_fixed_ms <= 1.03 * d.render_budget_ms,
+            "gradual {gradual}: {d:?}"
+        );
+        changed
+    };
+    let (sudden, gradual) = (changed_trees(false), changed_trees(true));
+    eprintln!("trees changed: {gradual} gradually, {sudden} all at once");
+    assert!(
+        gradual > 0 && 2 * gradual <= sudden,
+        "a slower machine changed {gradual} trees gradually, {sudden} all at once"
+    );
+}
+
 /// The still-camera shimmer: with measurements that scatter by ±10%, the learned costs
 /// move every frame; a still scene keeps its selection (at most 1 frame in 10 hands out
 /// anew, when the kept selection's price leaves its band), where handing out every frame

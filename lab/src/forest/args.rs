@@ -74,6 +74,10 @@ pub struct Args {
     /// fresh hand-out's (`SteadySelection::below` and `above`; default: the crate's).
     #[arg(long, value_name = "F", value_parser = share, allow_negative_numbers = true, conflicts_with = "no_steady")]
     pub steady_band: Option<f32>,
+    /// When a still scene's selection is handed out anew, every tree takes its fresh
+    /// share (`SteadySelection::gradual` off: to measure what the gradual change saves).
+    #[arg(long, conflicts_with = "no_steady")]
+    pub sudden: bool,
     /// Over how many frames a kept selection's fit is smoothed (default: the crate's).
     #[arg(long, value_name = "N", value_parser = positive, allow_negative_numbers = true, conflicts_with = "no_steady")]
     pub steady_frames: Option<f32>,
@@ -170,6 +174,7 @@ impl Args {
             below: self.steady_band.unwrap_or(default.below),
             above: self.steady_band.unwrap_or(default.above),
             smoothing_frames: self.steady_frames.unwrap_or(default.smoothing_frames),
+            gradual: !self.sudden,
             ..default
         }
     }
@@ -438,6 +443,7 @@ mod tests {
         let steady = a.steady();
         assert_eq!((steady.below, steady.above), (0.05, 0.05));
         assert_eq!(steady.smoothing_frames, 16.0);
+        assert!(steady.gradual && !parse(&["--sudden"]).unwrap().steady().gradual);
         assert_eq!(
             parse(&["--no-steady"]).unwrap().steady(),
             SteadySelection::OFF
