@@ -16,7 +16,7 @@ TREES=${TREES:-}
 PATH_NAME=${PATH_NAME:-linear}
 HOLD=${HOLD:-500}
 TARGETS=${TARGETS:-"30 60 120"}
-CONFIGS=${CONFIGS:-"tclod-steady: tclod-every-frame:--no-steady tc-steady:--mode,tc tc-every-frame:--mode,tc,--no-steady"}
+CONFIGS=${CONFIGS:-"tclod-gradual: tclod-sudden:--sudden tclod-every-frame:--no-steady tc-gradual:--mode,tc tc-every-frame:--mode,tc,--no-steady"}
 RUNS=${RUNS:-3}
 OUT=${OUT:-results/shimmer}
 mkdir -p "$OUT"
