@@ -14,8 +14,10 @@
 # Without wind, so that both runs of a configuration see the same trees in the same
 # place. Resumable: a run whose pictures exist is skipped; delete results/quality to
 # start over. Override with FORESTS (trees per forest), PATHS, FRAMES (comma-separated
-# measured frames), FRACTIONS, CONFIGS, OUT (the runs' directory), DOCS (where the
-# table and the sheet go) and FOREST (the forest tool's command, to compare builds).
+# measured frames), FRACTIONS, CONFIGS, RUNS (runs of each configuration: every figure
+# is their median, since the same frame's selection varies from run to run as the
+# learned costs wander), OUT (the runs' directory), DOCS (where the table and the sheet
+# go) and FOREST (the forest tool's command, to compare builds).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,6 +26,7 @@ PATHS=${PATHS:-"zigzag linear"}
 FRAMES=${FRAMES:-"90,210"}
 FRACTIONS=${FRACTIONS:-"0.125 0.25 0.5"}
 CONFIGS=${CONFIGS:-"tclod:robin-hood tc:robin-hood tclod:funkhouser tclod:hierarchical tc:triangle-budget"}
+RUNS=${RUNS:-3}
 OUT=${OUT:-results/quality}
 DOCS=${DOCS:-docs}
 mkdir -p "$OUT" "$DOCS"
@@ -65,6 +68,11 @@ frame_time() {
         END { if (n) printf "%.1f", s / n; else printf "-" }' "$1"
 }
 
+# The median of the numbers on standard input.
+median() {
+    sort -g | awk '{ v[NR] = $1 } END { if (NR % 2) print v[(NR + 1) / 2]; else print (v[NR / 2] + v[NR / 2 + 1]) / 2 }'
+}
+
 # The largest measured frame time (ms) of FILE.csv.
 peak() {
     awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; next }
@@ -83,7 +91,8 @@ table="$OUT/quality.md.part"
     echo "pixels at full detail, the share of those pixels the configuration still gives to"
     echo "that tree (mean, 5th percentile, minimum), and how many trees keep less than 95%;"
     echo "*time*, the measured frame time around that frame (mean of 11 frames). Targets are"
-    echo "fractions of the unlimited peak over the frames walked."
+    echo "fractions of the unlimited peak over the frames walked. Every figure is the median"
+    echo "of $RUNS runs of the configuration."
     echo
     echo "| forest | path | frame | config | target | time | SSIM | ꟻLIP | coverage mean | p5 | min | trees < 95% |"
     echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
@@ -103,26 +112,33 @@ for trees in $FORESTS; do
         done
         for run in "${runs[@]}"; do
             IFS=: read -r mode strategy target <<< "$run"
-            if [[ "$mode" == static ]]; then
-                name="$base-static"
-                shoot "$name" --trees "$trees" --path "$path" --mode static
-            else
-                name="$base-$mode-$strategy-$target"
-                shoot "$name" --trees "$trees" --path "$path" --mode "$mode" \
-                    --strategy "$strategy" --target-ms "$target"
-            fi
+            names=()
+            for r in $(seq 1 "$RUNS"); do
+                if [[ "$mode" == static ]]; then
+                    name="$base-static-r$r"
+                    shoot "$name" --trees "$trees" --path "$path" --mode static
+                else
+                    name="$base-$mode-$strategy-$target-r$r"
+                    shoot "$name" --trees "$trees" --path "$path" --mode "$mode" \
+                        --strategy "$strategy" --target-ms "$target"
+                fi
+                names+=("$name")
+            done
             for k in ${FRAMES//,/ }; do
-                line=$("${quality[@]}" compare "$OUT/$base-unlimited-$k.png" "$OUT/$base-unlimited-id-$k.png" \
-                    "$OUT/$name-$k.png" "$OUT/$name-id-$k.png")
                 declare -A q=()
-                for pair in $line; do q[${pair%%=*}]=${pair#*=}; done
+                for name in "${names[@]}"; do
+                    line=$("${quality[@]}" compare "$OUT/$base-unlimited-$k.png" "$OUT/$base-unlimited-id-$k.png" \
+                        "$OUT/$name-$k.png" "$OUT/$name-id-$k.png")
+                    for pair in $line; do q[${pair%%=*}]+="${pair#*=} "; done
+                    q[time]+="$(frame_time "$OUT/$name.csv" "$k") "
+                done
+                mid() { tr ' ' '\n' <<< "${q[$1]}" | grep -v '^$' | median; }
                 label="$mode"
                 [[ "$mode" != static ]] && label="$mode $strategy"
                 printf '| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s/%s |\n' \
-                    "$trees" "$path" "$k" "$label" "${target:-—}" \
-                    "$(frame_time "$OUT/$name.csv" "$k")" "${q[ssim]}" "${q[flip]}" "${q[coverage_mean]}" \
-                    "${q[coverage_p5]}" "${q[coverage_min]}" "${q[below_95]}" "${q[trees]}" \
-                    >> "$table"
+                    "$trees" "$path" "$k" "$label" "${target:-—}" "$(mid time)" "$(mid ssim)" \
+                    "$(mid flip)" "$(mid coverage_mean)" "$(mid coverage_p5)" "$(mid coverage_min)" \
+                    "$(mid below_95)" "$(mid trees)" >> "$table"
                 unset q
             done
         done
@@ -134,11 +150,11 @@ done
 base="${FORESTS%% *}-${PATHS%% *}"
 fraction=${FRACTIONS%% *}
 target=$(awk -v p="$(peak "$OUT/$base-unlimited.csv")" -v f="$fraction" 'BEGIN { printf "%.1f", p * f }')
-sheet=("$OUT/$base-unlimited-$last.png" "$OUT/$base-static-$last.png")
+sheet=("$OUT/$base-unlimited-$last.png" "$OUT/$base-static-r1-$last.png")
 labels="full detail, static LOD"
 for config in $CONFIGS; do
     IFS=: read -r mode strategy <<< "$config"
-    sheet+=("$OUT/$base-$mode-$strategy-$target-$last.png")
+    sheet+=("$OUT/$base-$mode-$strategy-$target-r1-$last.png")
     labels="$labels, $mode $strategy"
 done
 "${quality[@]}" sheet "$DOCS/quality-sheet.png" 3 "${sheet[@]}"
