@@ -9,7 +9,7 @@ use bevy::camera::visibility::RenderLayers;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use super::{LodLadder, mesh_triangles};
+use super::{LadderGhost, LodLadder, mesh_triangles};
 use crate::culling::{CullView, transform_bounds};
 use crate::lod::{AppMeshLoad, LadderObjects};
 use crate::tree::{BoundingSphere, Bounds};
@@ -29,7 +29,7 @@ pub(super) fn count_app_meshes(
             &InheritedVisibility,
             Option<&RenderLayers>,
         ),
-        Without<LodLadder>,
+        (Without<LodLadder>, Without<LadderGhost>),
     >,
     assets: Res<Assets<Mesh>>,
     mut events: MessageReader<AssetEvent<Mesh>>,

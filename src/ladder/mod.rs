@@ -6,7 +6,13 @@
 //! its [`LadderImportance`]), priced on Bevy's own mesh path (a draw's fixed cost plus
 //! its triangles, families the cost model learns like the forest pass's), never dropped
 //! (its cheapest level is its floor). The level chosen is shown by swapping the entity's
-//! `Mesh3d`; its material is untouched.
+//! `Mesh3d`; its material is untouched. With a `StandardMaterial`, a change of level is a
+//! dithered cross-fade over [`LadderSettings::fade_frames`] frames: a second entity of
+//! the crate's own ([`LadderGhost`]) draws the old mesh while the new one dithers in,
+//! and the budget pays for both while it runs. Other materials, and entities with a
+//! `VisibilityRange` of the app's own, switch at once. The first fade of a material
+//! compiles its dithered pipeline; on a slow shader compiler the two levels are not drawn
+//! until it is ready.
 //!
 //! Levels are given ([`LodLadder::new`], or nodes named `X_LOD0`, `X_LOD1`, … under a
 //! [`LadderFromLodNames`] scene) or generated from one mesh by simplification
@@ -22,15 +28,18 @@
 //! the hand-out and the frame stays on time.
 
 mod app_meshes;
+pub(crate) mod fade;
 mod generate;
 mod names;
 
+pub use fade::LadderGhost;
 pub use generate::{GeneratedLevel, LadderError, generate_ladder};
 pub use names::LadderFromLodNames;
 
 pub(crate) use names::mesh_triangles;
 
 use bevy::camera::primitives::Aabb;
+use bevy::camera::visibility::VisibilityRange;
 use bevy::prelude::*;
 
 use crate::culling::transform_bounds;
@@ -106,12 +115,17 @@ pub struct LadderSettings {
     /// shows at once. The budget pays for the level actually shown, so a held dearer level
     /// takes its time from the objects after it.
     pub hysteresis_frames: u32,
+    /// Frames a change of the level shown takes to cross-fade, both levels dithered into
+    /// each other (a `StandardMaterial` only; see the [module](self)). Default: 8. `0`
+    /// switches at once.
+    pub fade_frames: u32,
 }
 
 impl Default for LadderSettings {
     fn default() -> Self {
         Self {
             hysteresis_frames: 5,
+            fade_frames: 8,
         }
     }
 }
@@ -125,6 +139,8 @@ pub struct LadderState {
     pub shown: u32,
     /// A better level the budget has chosen, and for how many frames in a row.
     candidate: Option<(u32, u32)>,
+    /// The cross-fade from the level shown before, while it runs.
+    fade: Option<fade::LadderFade>,
 }
 
 impl LadderState {
@@ -133,7 +149,13 @@ impl LadderState {
         Self {
             shown: level,
             candidate: None,
+            fade: None,
         }
+    }
+
+    /// Whether a cross-fade from another level runs.
+    pub fn fading(&self) -> bool {
+        self.fade.is_some()
     }
 
     /// Takes this frame's choice (`wanted`, 0 = best) and returns whether the shown level
@@ -186,6 +208,8 @@ pub struct LadderDiagnostics {
     pub shown_per_level: Vec<u32>,
     /// Shown levels that changed this frame.
     pub switches: u32,
+    /// Cross-fades running this frame (each draws two levels).
+    pub fades: u32,
 }
 
 /// Adds [`LodLadder`] entities to the hand-out and shows the levels chosen for them.
@@ -202,6 +226,8 @@ impl Plugin for LadderPlugin {
             .register_type::<LadderSettings>()
             .register_type::<LadderFromLodNames>()
             .register_type::<LadderDiagnostics>()
+            .register_type::<LadderGhost>()
+            .register_type::<fade::FadeRange>()
             .init_resource::<LadderSettings>()
             .init_resource::<LadderDiagnostics>()
             .add_systems(
@@ -210,7 +236,13 @@ impl Plugin for LadderPlugin {
                     (names::ladders_from_lod_names, gather_ladders)
                         .chain()
                         .in_set(SherwoodSystems::Instances),
-                    show_ladder_levels.in_set(SherwoodSystems::DrawLists),
+                    // Before Bevy checks visibility, so that a ghost spawned and the
+                    // ranges set this frame count this frame (an entity with a
+                    // range not yet checked would be culled).
+                    (show_ladder_levels, fade::advance_fades)
+                        .chain()
+                        .in_set(SherwoodSystems::DrawLists)
+                        .before(bevy::camera::visibility::VisibilitySystems::CheckVisibility),
                     // After Bevy has computed new meshes' bounds and visibility, so a mesh
                     // spawned this frame counts this frame.
                     // An app without Bevy's meshes (a headless test) has none to count.
@@ -240,6 +272,11 @@ fn gather_ladders(
         Option<&Aabb>,
         Option<&LadderImportance>,
         &LadderState,
+        (
+            Has<MeshMaterial3d<StandardMaterial>>,
+            Option<&VisibilityRange>,
+            Has<fade::FadeRange>,
+        ),
     )>,
 ) {
     let LadderObjects {
@@ -247,7 +284,7 @@ fn gather_ladders(
     } = &mut *objects;
     entries.clear();
     triangles.clear();
-    for (entity, ladder, transform, aabb, importance, state) in &ladders {
+    for (entity, ladder, transform, aabb, importance, state, (material, range, ours)) in &ladders {
         let Some(aabb) = aabb else {
             continue;
         };
@@ -269,6 +306,12 @@ fn gather_ladders(
                 shown: state.shown,
                 better: state.shown > 0 && state.holds(state.shown - 1, settings.hysteresis_frames),
                 cheaper: state.holds(state.shown + 1, settings.hysteresis_frames),
+                // Advanced after the hand-out: drawn this frame unless this is its last.
+                fading: state
+                    .fade
+                    .filter(|f| f.frame < settings.fade_frames)
+                    .map(|f| f.from),
+                fades: fade::can_fade(&settings, material, range, ours),
             },
             levels: start..triangles.len() as u32,
         });
@@ -288,12 +331,19 @@ pub struct LadderLevelChanged {
     pub to: u32,
 }
 
-/// Shows the level the budget chose, through the hysteresis, by swapping `Mesh3d`.
+/// Shows the level the budget chose, through the hysteresis, by swapping `Mesh3d`, and
+/// starts a cross-fade from the level shown before where one can run.
 fn show_ladder_levels(
     objects: Res<LadderObjects>,
     settings: Res<LadderSettings>,
     mut diagnostics: ResMut<LadderDiagnostics>,
-    mut ladders: Query<(&LodLadder, &mut LadderState, Option<&mut Mesh3d>)>,
+    mut ladders: Query<(
+        &LodLadder,
+        &mut LadderState,
+        Option<&mut Mesh3d>,
+        fade::FadeSource,
+        (Option<&VisibilityRange>, Has<fade::FadeRange>),
+    )>,
     mut commands: Commands,
 ) {
     let diagnostics = &mut *diagnostics;
@@ -304,7 +354,8 @@ fn show_ladder_levels(
         let Some(wanted) = *chosen else {
             continue;
         };
-        let Ok((ladder, mut state, mesh)) = ladders.get_mut(entry.entity) else {
+        let Ok((ladder, mut state, mesh, source, (range, ours))) = ladders.get_mut(entry.entity)
+        else {
             continue;
         };
         let last = ladder.levels().len().saturating_sub(1) as u32;
@@ -317,6 +368,20 @@ fn show_ladder_levels(
                 from,
                 to: state.shown,
             });
+            let material = source.5.is_some();
+            match ladder.levels().get(from as usize) {
+                Some(old) if fade::can_fade(&settings, material, range, ours) => {
+                    fade::start(
+                        &mut commands,
+                        entry.entity,
+                        &mut state,
+                        from,
+                        old.mesh.clone(),
+                        source,
+                    );
+                }
+                _ => {}
+            }
         }
         let shown = state.shown.min(last) as usize;
         if diagnostics.shown_per_level.len() <= shown {

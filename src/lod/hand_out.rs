@@ -63,6 +63,15 @@ pub(super) struct BudgetState {
     blend: BlendScratch,
 }
 
+/// Whether a hand-out pays for a ladder's cross-fade (two levels drawn): not kept, since
+/// the fade ends while the scene stays still.
+fn pays_a_fade(ladders: &[LadderEntry], chosen: &[Option<u32>]) -> bool {
+    ladders
+        .iter()
+        .zip(chosen)
+        .any(|(entry, level)| level.is_some_and(|level| entry.hold.fading_for(level).is_some()))
+}
+
 /// A hand-out and the scene it was made for, kept while the scene stays still and the
 /// selection still fits ([`FrameBudget::steady`]); its lists stay in [`ChosenLists`].
 struct KeptHandOut {
@@ -103,10 +112,9 @@ impl KeptHandOut {
             && self.view == visible.view
             && self.objects.len() == visible.objects.len()
             && ladders.len() == self.mesh_levels.len()
-            && ladders
-                .iter()
-                .zip(&self.mesh_levels)
-                .all(|(entry, level)| level.is_none_or(|level| entry.hold.shown == level))
+            && ladders.iter().zip(&self.mesh_levels).all(|(entry, level)| {
+                level.is_none_or(|level| entry.hold.shown == level && entry.hold.fading.is_none())
+            })
             && self.objects.iter().zip(identities(visible, ladders)).all(
                 |(&(entity, part, then), (now_entity, now_part, now))| {
                     entity == now_entity && part == now_part && budget.steady.same_value(then, now)
@@ -461,7 +469,9 @@ pub(super) fn hand_out_time(
         lists.clone_from(&chosen.trees);
         drawn.clone_from(&state.drawn);
         state.kept = fit
-            .filter(|_| keeping && !outcome.settling)
+            .filter(|_| {
+                keeping && !outcome.settling && !pays_a_fade(&ladders.entries, &ladders.chosen)
+            })
             .map(|fit| KeptHandOut {
                 budget: budget.clone(),
                 view: visible.view,

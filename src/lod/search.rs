@@ -208,7 +208,20 @@ impl ObjectSearch<'_> {
         } else {
             select::ladder_cost(self.costs, levels, pixels, shown)
         };
-        (wanted, paid)
+        let Some(fading) = hold.fading_for(wanted) else {
+            return (wanted, paid);
+        };
+        // Both levels are drawn while a fade runs; the level shown still says what more
+        // time would change.
+        let ghost = select::ladder_cost(self.costs, levels, pixels, fading);
+        (
+            wanted,
+            select::Selected {
+                full: paid.full,
+                truncated: paid.truncated,
+                ..select::Selected::both(paid, ghost)
+            },
+        )
     }
 
     /// A mesh-ladder entity's levels' triangle counts, best first.

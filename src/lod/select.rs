@@ -454,6 +454,11 @@ pub(crate) struct LadderHold {
     pub better: bool,
     /// A choice one level cheaper would keep `shown`.
     pub cheaper: bool,
+    /// The level a running cross-fade draws beside `shown` this frame, if it goes on.
+    pub fading: Option<u32>,
+    /// A change of the level shown this frame fades from it (both are drawn while the
+    /// fade runs).
+    pub fades: bool,
 }
 
 impl LadderHold {
@@ -462,6 +467,17 @@ impl LadderHold {
         let held =
             (wanted + 1 == self.shown && self.better) || (wanted == self.shown + 1 && self.cheaper);
         if held { self.shown } else { wanted }
+    }
+
+    /// The level a cross-fade draws beside the one shown this frame when the budget
+    /// chooses `wanted`: the level shown until now if the choice changes it and changes
+    /// fade, else the running fade's.
+    pub(crate) fn fading_for(&self, wanted: u32) -> Option<u32> {
+        if self.shown_for(wanted) != self.shown {
+            self.fades.then_some(self.shown)
+        } else {
+            self.fading
+        }
     }
 }
 

@@ -163,6 +163,7 @@ fn the_budget_pays_for_the_level_the_hysteresis_holds() {
         shown: 2,
         better: true,
         cheaper: false,
+        ..LadderHold::default()
     };
     assert_eq!(hold.shown_for(1), 2);
     assert_eq!(hold.shown_for(3), 3);
@@ -176,6 +177,35 @@ fn the_budget_pays_for_the_level_the_hysteresis_holds() {
     assert_eq!(hold.shown_for(3), 2);
     assert_eq!(hold.shown_for(1), 1);
     assert_eq!(hold.shown_for(4), 4);
+}
+
+#[test]
+fn the_budget_pays_for_both_levels_while_a_fade_runs() {
+    use crate::lod::select::LadderHold;
+    let hold = LadderHold {
+        shown: 2,
+        better: true,
+        fades: true,
+        ..LadderHold::default()
+    };
+    // A change fades from the level shown until now; a held or unchanged choice draws
+    // no second level.
+    assert_eq!(hold.fading_for(0), Some(2));
+    assert_eq!(hold.fading_for(3), Some(2));
+    assert_eq!(hold.fading_for(1), None);
+    assert_eq!(hold.fading_for(2), None);
+    let running = LadderHold {
+        fading: Some(1),
+        ..hold
+    };
+    assert_eq!(running.fading_for(2), Some(1));
+    assert_eq!(running.fading_for(0), Some(2));
+    let unfaded = LadderHold {
+        fades: false,
+        ..running
+    };
+    assert_eq!(unfaded.fading_for(0), None);
+    assert_eq!(unfaded.fading_for(2), Some(1));
 }
 
 const EYE: Vec3 = Vec3::new(60.0, 14.0, 40.0);
@@ -547,6 +577,103 @@ fn the_hand_out_pays_for_the_levels_shown_while_the_hysteresis_holds() {
         "no level was ever held: the test saw no hysteresis"
     );
     assert!(switched > 0, "no level ever changed");
+}
+
+/// With a `StandardMaterial`, every change of a shown level cross-fades: a ghost draws the
+/// old level for `fade_frames` frames, both entities carry the dither's ranges, the budget
+/// pays for both levels while the fade runs, and nothing of it is left afterwards.
+#[test]
+fn a_level_change_fades_for_its_frames_and_the_hand_out_pays_for_both_levels() {
+    use crate::cost::{CostModel, PrimitiveCosts};
+    use crate::ladder::LadderGhost;
+    use bevy::camera::visibility::VisibilityRange;
+    const FADE: u32 = 3;
+    let (mut app, spheres) = app(20);
+    for &sphere in &spheres {
+        app.world_mut()
+            .entity_mut(sphere)
+            .insert(MeshMaterial3d::<StandardMaterial>::default());
+    }
+    *app.world_mut().resource_mut::<LadderSettings>() = LadderSettings {
+        hysteresis_frames: 1,
+        fade_frames: FADE,
+    };
+    let targets = [
+        (100_000.0, 2),
+        (60.0, 6),
+        (30.0, 6),
+        (400.0, 1),
+        (100_000.0, 8),
+    ];
+    let mut faded_since: Vec<Option<u32>> = vec![None; spheres.len()];
+    let (mut fades, mut lengths) = (0, Vec::new());
+    let mut before = shown(&app, &spheres);
+    for target in targets
+        .into_iter()
+        .flat_map(|(t, n)| std::iter::repeat_n(t, n))
+    {
+        let d = frame(&mut app, LodMode::Tclod, StrategyKind::RobinHood, target);
+        let now = shown(&app, &spheres);
+        let world = app.world_mut();
+        let ghosts: Vec<(Entity, Handle<Mesh>)> = world
+            .query::<(&LadderGhost, &Mesh3d)>()
+            .iter(world)
+            .map(|(g, m)| (g.owner, m.0.clone()))
+            .collect();
+        let world = app.world();
+        let calibration = world.resource::<CostModel>().calibration().clone();
+        let prices = PrimitiveCosts::from_calibration(&calibration, 1.0);
+        let mut paid = 0.0;
+        for (k, (&sphere, &level)) in spheres.iter().zip(&now).enumerate() {
+            let ladder = world.get::<LodLadder>(sphere).unwrap();
+            let levels = ladder.levels();
+            paid += prices.mesh(levels[level as usize].triangles);
+            let ghost: Vec<_> = ghosts.iter().filter(|(o, _)| *o == sphere).collect();
+            assert!(ghost.len() <= 1, "one ghost per ladder");
+            let range = world.get::<VisibilityRange>(sphere).is_some();
+            if let Some((_, mesh)) = ghost.first() {
+                let old = levels.iter().position(|l| l.mesh == *mesh).unwrap();
+                assert_ne!(old as u32, level, "the ghost draws the level faded out");
+                paid += prices.mesh(levels[old].triangles);
+                assert!(range, "a fading ladder dithers");
+            } else {
+                assert!(!range, "the dither's range outlived the fade");
+            }
+            if before[k] != level {
+                faded_since[k] = Some(0);
+                assert!(!ghost.is_empty(), "a change of level did not fade");
+            }
+            match (&mut faded_since[k], ghost.is_empty()) {
+                (Some(n), false) => *n += 1,
+                (since @ Some(_), true) => {
+                    lengths.push(since.take().unwrap());
+                }
+                (None, false) => panic!("a ghost without a change of level"),
+                (None, true) => {}
+            }
+        }
+        fades += ghosts.len();
+        assert_eq!(
+            world.resource::<LadderDiagnostics>().fades as usize,
+            ghosts.len()
+        );
+        assert_eq!(d.app_mesh_draws, 0, "a ghost counted as an app mesh");
+        assert!(
+            (d.calibrated.meshes - paid).abs() <= 1e-3 * paid.max(1e-9),
+            "at {target} ms the budget paid {} for meshes and fades that cost {paid}",
+            d.calibrated.meshes,
+        );
+        before = now;
+    }
+    assert!(fades > 0, "no level ever faded");
+    assert!(
+        lengths.iter().all(|&n| n == FADE),
+        "fades lasted {lengths:?} frames, not {FADE}"
+    );
+    assert!(
+        faded_since.iter().all(Option::is_none),
+        "a fade never ended"
+    );
 }
 
 /// The app's own meshes (no ladder) are not budgeted but predicted: spawning them takes

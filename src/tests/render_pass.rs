@@ -17,6 +17,7 @@ use crate::instance::TreeInstance;
 use crate::render::ForestRenderPlugin;
 use crate::tree::{AnalysisOptions, MeshData, TreeModel, TreePlugin, analyze};
 use crate::{SherwoodCorePlugin, prelude::ForestRenderStats};
+use bevy::camera::visibility::VisibilityRange;
 use bevy::camera::{ClearColorConfig, RenderTarget};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::log::LogPlugin;
@@ -910,6 +911,70 @@ fn a_group_impostor_covers_where_its_trees_are() {
         assert!(
             (0.3..3.0).contains(&ratio),
             "{name}: ×{ratio:.2} the trees' pixels"
+        );
+    }
+}
+
+/// An unlit cube of `color`, dithered by `range` when given.
+fn dithered_cube(world: &mut World, color: Color, range: Option<VisibilityRange>) {
+    let mesh = world
+        .resource_mut::<Assets<Mesh>>()
+        .add(Cuboid::new(1.0, 1.0, 1.0));
+    let material = world
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial {
+            base_color: color,
+            unlit: true,
+            ..default()
+        });
+    let mut cube = world.spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
+    if let Some(range) = range {
+        cube.insert(range);
+    }
+}
+
+/// A ladder's cross-fade on the real renderer: at every step the level fading in and the
+/// one fading out share the pixels of the dither pattern — together they cover what one
+/// undithered cube covers, the new one its step's sixteenths of it.
+#[test]
+fn a_fade_s_two_levels_dither_into_each_other() {
+    use crate::ladder::fade::{incoming_range, outgoing_range};
+    let eye = Vec3::new(0.8, 0.9, 2.2);
+    let (whole, _) = render("fade_whole", eye, Vec3::ZERO, |world| {
+        dithered_cube(world, Color::srgb(1.0, 0.0, 0.0), None);
+    });
+    let whole = whole.coverage();
+    assert!(whole > 5_000, "the cube covers {whole} pixels");
+    for step in [2, 8, 13] {
+        let (picture, _) = render(&format!("fade_{step}"), eye, Vec3::ZERO, move |world| {
+            dithered_cube(
+                world,
+                Color::srgb(1.0, 0.0, 0.0),
+                Some(incoming_range(step)),
+            );
+            dithered_cube(
+                world,
+                Color::srgb(0.0, 1.0, 0.0),
+                Some(outgoing_range(step)),
+            );
+        });
+        let (mut incoming, mut outgoing) = (0usize, 0usize);
+        for y in 0..picture.height {
+            for x in 0..picture.width {
+                let p = picture.pixel(x, y);
+                incoming += usize::from(p[0] > 128 && p[1] < 64);
+                outgoing += usize::from(p[1] > 128 && p[0] < 64);
+            }
+        }
+        let both = incoming + outgoing;
+        assert!(
+            both.abs_diff(whole) * 50 <= whole,
+            "step {step}: the two levels cover {both} pixels, one cube {whole}"
+        );
+        let share = incoming as f64 / both as f64;
+        assert!(
+            (share - step as f64 / 16.0).abs() < 0.04,
+            "step {step}: the level fading in covers {share:.3} of the pixels"
         );
     }
 }
