@@ -25,6 +25,7 @@ mod cost_report;
 mod forest;
 mod frame_stats;
 mod gallery;
+mod goals;
 mod id_colors;
 mod large_forest;
 mod pass_benchmark;
@@ -52,6 +53,9 @@ enum Tool {
     /// `docs/results.md` and its plots from the runs of `scripts/reproduce.sh` (or the
     /// large-forest report with `--large`).
     Results(results::Args),
+    /// `docs/goals.md` from the runs of `scripts/goals.sh`: the tail goal beside the mean
+    /// goal and fixed headrooms.
+    Goals(goals::Args),
     /// `docs/cost-model.md` from the runs of `scripts/learning.sh`.
     CostReport(cost_report::Args),
     /// Replays a frame record through the cost model offline.
@@ -78,6 +82,7 @@ fn main() -> ExitCode {
     match Cli::parse().tool {
         Tool::Forest(args) => exit_code(forest::run(*args)),
         Tool::Results(args) => results::run(args),
+        Tool::Goals(args) => goals::run(args),
         Tool::CostReport(args) => cost_report::run(args),
         Tool::CostReplay(args) => cost_replay::run(args),
         Tool::Quality(args) => quality::run(args),
