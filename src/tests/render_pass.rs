@@ -422,21 +422,28 @@ fn large_points_are_discs_of_their_squares_area() {
 }
 
 fn cube(world: &mut World, at: Vec3) {
+    unlit_cube(world, Color::srgb(1.0, 0.0, 0.0), at);
+}
+
+/// A unit cube of flat `color` at `at`.
+fn unlit_cube(world: &mut World, color: Color, at: Vec3) -> Entity {
     let mesh = world
         .resource_mut::<Assets<Mesh>>()
         .add(Cuboid::new(1.0, 1.0, 1.0));
     let material = world
         .resource_mut::<Assets<StandardMaterial>>()
         .add(StandardMaterial {
-            base_color: Color::srgb(1.0, 0.0, 0.0),
+            base_color: color,
             unlit: true,
             ..default()
         });
-    world.spawn((
-        Mesh3d(mesh),
-        MeshMaterial3d(material),
-        Transform::from_translation(at),
-    ));
+    world
+        .spawn((
+            Mesh3d(mesh),
+            MeshMaterial3d(material),
+            Transform::from_translation(at),
+        ))
+        .id()
 }
 
 #[test]
@@ -917,19 +924,9 @@ fn a_group_impostor_covers_where_its_trees_are() {
 
 /// An unlit cube of `color`, dithered by `range` when given.
 fn dithered_cube(world: &mut World, color: Color, range: Option<VisibilityRange>) {
-    let mesh = world
-        .resource_mut::<Assets<Mesh>>()
-        .add(Cuboid::new(1.0, 1.0, 1.0));
-    let material = world
-        .resource_mut::<Assets<StandardMaterial>>()
-        .add(StandardMaterial {
-            base_color: color,
-            unlit: true,
-            ..default()
-        });
-    let mut cube = world.spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
+    let cube = unlit_cube(world, color, Vec3::ZERO);
     if let Some(range) = range {
-        cube.insert(range);
+        world.entity_mut(cube).insert(range);
     }
 }
 
