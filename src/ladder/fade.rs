@@ -279,7 +279,10 @@ mod tests {
 
     #[test]
     fn only_a_standard_material_without_the_app_s_own_range_fades() {
-        let on = LadderSettings::default();
+        let on = LadderSettings {
+            fade_frames: 8,
+            ..LadderSettings::default()
+        };
         let off = LadderSettings {
             fade_frames: 0,
             ..on

@@ -27,6 +27,10 @@ pub struct Args {
     /// as the trees.
     #[arg(long, default_value_t = 0)]
     pub meshes: u32,
+    /// Frames a boulder's change of level cross-fades (`LadderSettings::fade_frames`; 0,
+    /// the default, switches at once).
+    #[arg(long, default_value_t = 0)]
+    pub fade_frames: u32,
     /// Placement seed (default: the ecosystem's).
     #[arg(long)]
     pub seed: Option<u64>,

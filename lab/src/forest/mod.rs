@@ -72,6 +72,10 @@ pub fn run(mut args: Args) -> AppExit {
     .insert_resource(BenefitReport {
         enabled: args.benefit,
     })
+    .insert_resource(LadderSettings {
+        fade_frames: args.fade_frames,
+        ..default()
+    })
     .insert_resource(WindSettings {
         enabled: !args.no_wind,
         ..default()
