@@ -63,6 +63,69 @@ pub(super) struct BudgetState {
     blend: BlendScratch,
 }
 
+/// This frame's fresh hand-out and the scene it was made for, as
+/// [`BudgetState::remember`] keeps it.
+struct FreshHandOut<'a> {
+    budget: &'a FrameBudget,
+    visible: &'a VisibleObjects,
+    ladders: &'a LadderObjects,
+    outcome: &'a Outcome,
+    selection: &'a Selection,
+    costs: &'a PrimitiveCosts,
+    scales: FamilyScales,
+    score: Option<(f32, f32)>,
+    lists: &'a Vec<TreeDrawList>,
+    rendering: f32,
+}
+
+impl BudgetState {
+    /// Keeps a fresh hand-out for a still scene to reuse when `may_keep` and its price
+    /// fits ([`FrameBudget::steady`]), else forgets the kept one; the kept lists' buffers
+    /// are reused either way.
+    fn remember(&mut self, fresh: FreshHandOut, may_keep: bool) {
+        let FreshHandOut {
+            budget,
+            visible,
+            ladders,
+            outcome,
+            selection,
+            costs,
+            scales,
+            score,
+            lists: fresh_lists,
+            rendering,
+        } = fresh;
+        let fit = budget.steady.fit(outcome.stats.used, rendering);
+        let (mut lists, mut drawn) = self
+            .kept
+            .take()
+            .map(|kept| (kept.lists, kept.drawn))
+            .unwrap_or_default();
+        lists.clone_from(fresh_lists);
+        drawn.clone_from(&self.drawn);
+        self.kept = fit.filter(|_| may_keep).map(|fit| KeptHandOut {
+            budget: budget.clone(),
+            view: visible.view,
+            objects: identities(visible, &ladders.entries).collect(),
+            calibrated: by_family(
+                selection.drawn,
+                selection.predicted,
+                selection.counts,
+                costs,
+            )
+            .unscaled(scales),
+            outcome: outcome.clone(),
+            mesh_levels: ladders.chosen.clone(),
+            counts: selection.counts,
+            trees_drawn: selection.trees_drawn,
+            score,
+            fit,
+            lists,
+            drawn,
+        });
+    }
+}
+
 /// Whether a hand-out pays for a ladder's cross-fade (two levels drawn): not kept, since
 /// the fade ends while the scene stays still.
 fn pays_a_fade(ladders: &[LadderEntry], chosen: &[Option<u32>]) -> bool {
@@ -385,52 +448,22 @@ pub(super) fn hand_out_time(
             (outcome, score, Some(selection))
         }
         None => {
-            chosen.clear_for(visible.trees.len());
-            let LadderObjects {
-                entries,
-                triangles,
-                chosen: mesh_levels,
-                ..
-            } = &mut *ladders;
-            let search =
-                object_search(&visible, &budget, &costs, &boxes.models, entries, triangles);
-            let ChosenLists {
-                trees: lists,
-                impostors: impostor_lists,
-                ..
-            } = &mut *chosen;
-            state.drawn.clear();
-            state
-                .drawn
-                .resize(visible.objects.len(), Selected::default());
-            let mut hand_out = HandOut {
-                search: &search,
-                choices: Choices {
-                    lists,
-                    mesh_levels,
-                    drawn: &mut state.drawn,
-                },
-                values: &visible.values,
-                complexities: &visible.complexities,
+            let fresh = FreshInputs {
+                budget: &budget,
+                visible: &visible,
+                costs: &costs,
                 rendering,
-                allocations: &mut state.allocations,
-                scratch: &mut state.scratch,
-                tree_parts: far.holding().then_some(&mut state.tree_parts),
-                scene: Scene {
-                    culling: boxes.culling.as_deref(),
-                    impostors: &boxes.impostors,
-                    models: &boxes.models,
-                    cut: &mut boxes.cut,
-                    impostor_lists,
-                },
+                scored_rendering: report.enabled.then_some(times.rendering),
+                far_holding: far.holding(),
             };
-            let outcome = if time_critical {
-                strategies.get(budget.strategy).hand_out(&mut hand_out)
-            } else {
-                strategy::draw_everything(&mut hand_out)
-            };
-            let score = (report.enabled && time_critical)
-                .then(|| score_hand_out(&mut hand_out, &outcome, times.rendering));
+            let (outcome, score) = hand_out_fresh(
+                fresh,
+                state,
+                &mut chosen,
+                &mut ladders,
+                &mut boxes,
+                &mut strategies,
+            );
             (outcome, score, None)
         }
     };
@@ -460,38 +493,23 @@ pub(super) fn hand_out_time(
         )
     });
     if !selection_kept {
-        let fit = budget.steady.fit(outcome.stats.used, rendering);
-        let (mut lists, mut drawn) = state
-            .kept
-            .take()
-            .map(|kept| (kept.lists, kept.drawn))
-            .unwrap_or_default();
-        lists.clone_from(&chosen.trees);
-        drawn.clone_from(&state.drawn);
-        state.kept = fit
-            .filter(|_| {
-                keeping && !outcome.settling && !pays_a_fade(&ladders.entries, &ladders.chosen)
-            })
-            .map(|fit| KeptHandOut {
-                budget: budget.clone(),
-                view: visible.view,
-                objects: identities(&visible, &ladders.entries).collect(),
-                calibrated: by_family(
-                    selection.drawn,
-                    selection.predicted,
-                    selection.counts,
-                    &costs,
-                )
-                .unscaled(scales),
-                outcome: outcome.clone(),
-                mesh_levels: ladders.chosen.clone(),
-                counts: selection.counts,
-                trees_drawn: selection.trees_drawn,
+        let may_keep =
+            keeping && !outcome.settling && !pays_a_fade(&ladders.entries, &ladders.chosen);
+        state.remember(
+            FreshHandOut {
+                budget: &budget,
+                visible: &visible,
+                ladders: &ladders,
+                outcome: &outcome,
+                selection: &selection,
+                costs: &costs,
+                scales,
                 score: score.map(|(benefit, bound, _)| (benefit, bound)),
-                fit,
-                lists,
-                drawn,
-            });
+                lists: &chosen.trees,
+                rendering,
+            },
+            may_keep,
+        );
     }
     let priced = record_prediction(&mut cost_model, &clock, &times, &costs, &selection);
     let (benefit, benefit_bound, report_time) = score.unwrap_or_default();
@@ -516,6 +534,88 @@ pub(super) fn hand_out_time(
     if let Some(alert) = state.target.observe(&diagnostics, time.elapsed_secs()) {
         alerts::raise(&mut commands, alert);
     }
+}
+
+/// What a fresh hand-out is made from.
+struct FreshInputs<'a> {
+    budget: &'a FrameBudget,
+    visible: &'a VisibleObjects,
+    costs: &'a PrimitiveCosts,
+    /// The rendering time handed out.
+    rendering: f32,
+    /// With the benefit report on: the rendering time the hand-out is scored against.
+    scored_rendering: Option<f32>,
+    /// Far trees are held (their parts are kept per tree).
+    far_holding: bool,
+}
+
+/// Hands the rendering time out anew — the strategy in the time-critical modes, every
+/// object at its mode's representation otherwise — into the chosen lists, the ladders'
+/// levels and what each object drew; scored against the bound with the benefit report.
+fn hand_out_fresh(
+    fresh: FreshInputs,
+    state: &mut BudgetState,
+    chosen: &mut ChosenLists,
+    ladders: &mut LadderObjects,
+    boxes: &mut Boxes,
+    strategies: &mut Strategies,
+) -> (Outcome, Option<(f32, f32, Duration)>) {
+    let FreshInputs {
+        budget,
+        visible,
+        costs,
+        rendering,
+        scored_rendering,
+        far_holding,
+    } = fresh;
+    let time_critical = budget.mode.is_time_critical();
+    chosen.clear_for(visible.trees.len());
+    let LadderObjects {
+        entries,
+        triangles,
+        chosen: mesh_levels,
+        ..
+    } = ladders;
+    let search = object_search(visible, budget, costs, &boxes.models, entries, triangles);
+    let ChosenLists {
+        trees: lists,
+        impostors: impostor_lists,
+        ..
+    } = chosen;
+    state.drawn.clear();
+    state
+        .drawn
+        .resize(visible.objects.len(), Selected::default());
+    let mut hand_out = HandOut {
+        search: &search,
+        choices: Choices {
+            lists,
+            mesh_levels,
+            drawn: &mut state.drawn,
+        },
+        values: &visible.values,
+        complexities: &visible.complexities,
+        rendering,
+        allocations: &mut state.allocations,
+        scratch: &mut state.scratch,
+        tree_parts: far_holding.then_some(&mut state.tree_parts),
+        scene: Scene {
+            culling: boxes.culling.as_deref(),
+            impostors: &boxes.impostors,
+            models: &boxes.models,
+            cut: &mut boxes.cut,
+            impostor_lists,
+        },
+    };
+    let outcome = if time_critical {
+        strategies.get(budget.strategy).hand_out(&mut hand_out)
+    } else {
+        strategy::draw_everything(&mut hand_out)
+    };
+    let score = scored_rendering
+        .filter(|_| time_critical)
+        .map(|given| score_hand_out(&mut hand_out, &outcome, given));
+    (outcome, score)
 }
 
 /// Every visible object's search, by the mode's methods.
