@@ -157,11 +157,6 @@ impl LadderState {
         }
     }
 
-    /// Whether a cross-fade from another level runs.
-    pub fn fading(&self) -> bool {
-        self.fade.is_some()
-    }
-
     /// Takes this frame's choice (`wanted`, 0 = best) and returns whether the shown level
     /// changed: at once for a level two or more steps away; for one step better or
     /// cheaper only once it has been chosen `frames` frames in a row.
@@ -346,7 +341,6 @@ fn show_ladder_levels(
         &mut LadderState,
         Option<&mut Mesh3d>,
         fade::FadeSource,
-        (Option<&VisibilityRange>, Has<fade::FadeRange>),
     )>,
     mut commands: Commands,
 ) {
@@ -358,8 +352,7 @@ fn show_ladder_levels(
         let Some(wanted) = *chosen else {
             continue;
         };
-        let Ok((ladder, mut state, mesh, source, (range, ours))) = ladders.get_mut(entry.entity)
-        else {
+        let Ok((ladder, mut state, mesh, source)) = ladders.get_mut(entry.entity) else {
             continue;
         };
         let last = ladder.levels().len().saturating_sub(1) as u32;
@@ -372,19 +365,18 @@ fn show_ladder_levels(
                 from,
                 to: state.shown,
             });
-            let material = source.5.is_some();
-            match ladder.levels().get(from as usize) {
-                Some(old) if fade::can_fade(&settings, material, range, ours) => {
-                    fade::start(
-                        &mut commands,
-                        entry.entity,
-                        &mut state,
-                        from,
-                        old.mesh.clone(),
-                        source,
-                    );
-                }
-                _ => {}
+            // Whether it fades was decided when the budget paid for it.
+            if entry.hold.fades
+                && let Some(old) = ladder.levels().get(from as usize)
+            {
+                fade::start(
+                    &mut commands,
+                    entry.entity,
+                    &mut state,
+                    from,
+                    old.mesh.clone(),
+                    source,
+                );
             }
         }
         let shown = state.shown.min(last) as usize;
