@@ -38,10 +38,6 @@ printf 'sizes: %s\npaths: %s\nfractions of the unlimited peak: %s\ngoals: %s\npa
 
 source "$(dirname "$0")/lib/runs.sh"
 
-peak_of() {
-    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "measured_ms") c = i; next }
-             $c > max { max = $c; at = $1 } END { printf "%.1f %d\n", max, at }' "$RAW/$1.csv"
-}
 goal_flags() {
     case "$1" in
         tail) echo "--goal tail" ;;
@@ -60,13 +56,13 @@ for size in $SIZES; do
         if [[ -z "$first_path" ]]; then
             first_path=$path
             for fraction in $FRACTIONS; do
-                target=$(awk -v p="$peak" -v f="$fraction" 'BEGIN { printf "%.1f", p * f }')
+                target=$(fraction_of "$peak" "$fraction")
                 run "${size}_${path}_hold_${fraction}" "${common[@]}" --goal tail \
                     --target-ms "$target" --hold-frame "$peak_frame" --frames "$HOLD_FRAMES"
             done
         fi
         for fraction in $FRACTIONS; do
-            target=$(awk -v p="$peak" -v f="$fraction" 'BEGIN { printf "%.1f", p * f }')
+            target=$(fraction_of "$peak" "$fraction")
             for goal in $GOALS; do
                 # shellcheck disable=SC2046
                 run "${size}_${path}_${goal}_${fraction}" "${common[@]}" --target-ms "$target" \

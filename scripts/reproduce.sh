@@ -53,14 +53,6 @@ printf 'sizes: %s\npaths: %s\nfractions of the unlimited peak: %s\nmodes: %s\nst
 
 source "$(dirname "$0")/lib/runs.sh"
 
-# The unlimited run's peak frame time and the measured frame it fell on.
-peak_of() {
-    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "measured_ms") c = i; next }
-             $c > max { max = $c; at = $1 } END { printf "%.1f %d\n", max, at }' "$RAW/$1.csv"
-}
-fraction_of() {
-    awk -v p="$1" -v f="$2" 'BEGIN { printf "%.1f", p * f }'
-}
 middle=$(echo "$FRACTIONS" | awk '{ print $(int((NF + 1) / 2)) }')
 
 for size in $SIZES; do

@@ -47,8 +47,9 @@ pub fn run(args: Args) -> ExitCode {
 #[derive(Clone, Debug, PartialEq)]
 enum Label {
     Unlimited,
+    /// Identical frames at this fraction of the peak: the noise floor.
     Hold(f64),
-    /// The goal, its headroom (1 for the tail and mean goals) and the target's fraction.
+    /// A goal run at a fraction of the unlimited peak.
     Goal {
         goal: Goal,
         fraction: f64,

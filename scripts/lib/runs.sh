@@ -21,3 +21,14 @@ run() {
     mv "$RAW/$name.summary.part" "$RAW/$name.summary"
     mv "$RAW/$name.csv.part" "$RAW/$name.csv"
 }
+
+# The peak frame time of the run "$RAW/NAME.csv" and the measured frame it fell on.
+peak_of() {
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "measured_ms") c = i; next }
+             $c > max { max = $c; at = $1 } END { printf "%.1f %d\n", max, at }' "$RAW/$1.csv"
+}
+
+# PEAK × FRACTION, to a tenth of a millisecond: a target as the runs' names give it.
+fraction_of() {
+    awk -v p="$1" -v f="$2" 'BEGIN { printf "%.1f", p * f }'
+}
