@@ -155,6 +155,19 @@ pub struct FrameRecord {
     pub budget_stage_ms: f32,
     /// The draw-list stage's time.
     pub draw_lists_stage_ms: f32,
+    /// The Sherwood sets' span in `PostUpdate` (from the instance table to the stats;
+    /// whatever the executor ran in between counts too), milliseconds.
+    #[serde(default)]
+    pub sherwood_ms: f32,
+    /// The wind's per-instance work (`WindStats::update_ms`).
+    #[serde(default)]
+    pub wind_ms: f32,
+    /// The forest's extraction into the render world (`ForestRenderStats::extract_ms`).
+    #[serde(default)]
+    pub extract_ms: f32,
+    /// Preparing the forest's GPU buffers (`ForestRenderStats::prepare_ms`).
+    #[serde(default)]
+    pub prepare_ms: f32,
 }
 
 /// A record read back: its frames in order.
@@ -277,6 +290,10 @@ pub(crate) mod tests {
                 value_stage_ms: 0.2,
                 budget_stage_ms: 0.3,
                 draw_lists_stage_ms: 0.1,
+                sherwood_ms: 1.0,
+                wind_ms: 0.1,
+                extract_ms: 0.2,
+                prepare_ms: 0.1,
             })
             .collect()
     }

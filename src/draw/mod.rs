@@ -59,7 +59,7 @@ pub struct PointRun {
 /// — spawned after this frame's level of detail was chosen — at its
 /// [coarsest](Self::coarsest) until the next frame gives it its own; one whose list is
 /// empty is not drawn.
-#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
+#[derive(Component, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default)]
 pub struct TreeDrawList {
     /// Trunk triangles drawn lit, a range of triangle indices into
@@ -72,6 +72,30 @@ pub struct TreeDrawList {
     pub leaf_triangles: Vec<Range<u32>>,
     /// Leaves drawn as lit points (leaf indices in either order).
     pub leaf_points: Vec<PointRun>,
+}
+
+impl Clone for TreeDrawList {
+    fn clone(&self) -> Self {
+        let mut list = Self::default();
+        list.clone_from(self);
+        list
+    }
+
+    /// Into the lists' own allocations: the LOD stages copy every visible tree's list
+    /// each frame, which would otherwise allocate and free them all.
+    fn clone_from(&mut self, source: &Self) {
+        // Every field named: a new one cannot be forgotten here.
+        let Self {
+            trunk_triangles,
+            trunk_lines,
+            leaf_triangles,
+            leaf_points,
+        } = self;
+        trunk_triangles.clone_from(&source.trunk_triangles);
+        trunk_lines.clone_from(&source.trunk_lines);
+        leaf_triangles.clone_from(&source.leaf_triangles);
+        leaf_points.clone_from(&source.leaf_points);
+    }
 }
 
 impl TreeDrawList {
@@ -295,5 +319,39 @@ impl ModelSlot {
         let r = clip(leaves, self.point_count);
         self.leaf_triangles + self.leaf_triangle_prefix[r.start as usize]
             ..self.leaf_triangles + self.leaf_triangle_prefix[r.end as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_list_copied_into_another_is_equal_and_keeps_the_others_allocations() {
+        let source = TreeDrawList {
+            trunk_triangles: 3..9,
+            trunk_lines: vec![LineRun {
+                segments: 0..4,
+                width: 2,
+            }],
+            leaf_triangles: vec![0..5, 9..12],
+            leaf_points: vec![PointRun {
+                leaves: 5..9,
+                size: 3,
+            }],
+        };
+        let mut copy = TreeDrawList {
+            leaf_points: Vec::with_capacity(16),
+            leaf_triangles: Vec::with_capacity(16),
+            ..TreeDrawList::default()
+        };
+        let (points, triangles) = (copy.leaf_points.as_ptr(), copy.leaf_triangles.as_ptr());
+        copy.clone_from(&source);
+        assert_eq!(copy, source);
+        assert_eq!(copy.clone(), source);
+        assert_eq!(
+            (copy.leaf_points.as_ptr(), copy.leaf_triangles.as_ptr()),
+            (points, triangles)
+        );
     }
 }

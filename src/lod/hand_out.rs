@@ -58,6 +58,8 @@ pub(super) struct BudgetState {
     target: TargetWatch,
     /// The last fresh hand-out, for a still scene to keep ([`FrameBudget::steady`]).
     kept: Option<KeptHandOut>,
+    /// A forgotten hand-out's allocations, for the next one kept.
+    spare: KeptBuffers,
     /// Per object, what this frame's hand-out drew.
     drawn: Vec<Selected>,
     blend: BlendScratch,
@@ -96,17 +98,26 @@ impl BudgetState {
             rendering,
         } = fresh;
         let fit = budget.steady.fit(outcome.stats.used, rendering);
-        let (mut lists, mut drawn) = self
-            .kept
-            .take()
-            .map(|kept| (kept.lists, kept.drawn))
-            .unwrap_or_default();
-        lists.clone_from(fresh_lists);
-        drawn.clone_from(&self.drawn);
-        self.kept = fit.filter(|_| may_keep).map(|fit| KeptHandOut {
+        let mut buffers = match self.kept.take() {
+            Some(kept) => kept.buffers,
+            None => core::mem::take(&mut self.spare),
+        };
+        let Some(fit) = fit.filter(|_| may_keep) else {
+            self.spare = buffers;
+            return;
+        };
+        // Copied into the last kept hand-out's allocations: a moving camera remembers
+        // every frame's hand-out.
+        buffers.lists.clone_from(fresh_lists);
+        buffers.drawn.clone_from(&self.drawn);
+        buffers.objects.clear();
+        buffers
+            .objects
+            .extend(identities(visible, &ladders.entries));
+        buffers.mesh_levels.clone_from(&ladders.chosen);
+        self.kept = Some(KeptHandOut {
             budget: budget.clone(),
             view: visible.view,
-            objects: identities(visible, &ladders.entries).collect(),
             calibrated: by_family(
                 selection.drawn,
                 selection.predicted,
@@ -115,13 +126,11 @@ impl BudgetState {
             )
             .unscaled(scales),
             outcome: outcome.clone(),
-            mesh_levels: ladders.chosen.clone(),
             counts: selection.counts,
             trees_drawn: selection.trees_drawn,
             score,
             fit,
-            lists,
-            drawn,
+            buffers,
         });
     }
 }
@@ -140,12 +149,9 @@ fn pays_a_fade(ladders: &[LadderEntry], chosen: &[Option<u32>]) -> bool {
 struct KeptHandOut {
     budget: FrameBudget,
     view: Option<LodView>,
-    /// Per visible object, its entity, part and value.
-    objects: Vec<(Entity, Part, f32)>,
     outcome: Outcome,
     /// The trees' and ladders' selection priced by the calibration alone.
     calibrated: FamilyTimes,
-    mesh_levels: Vec<Option<u32>>,
     /// What the selection draws, and how many trees on their own.
     counts: PrimitiveCounts,
     trees_drawn: u32,
@@ -153,9 +159,18 @@ struct KeptHandOut {
     score: Option<(f32, f32)>,
     /// Its price over the rendering time, as handed out and smoothed since.
     fit: steady::Fit,
+    buffers: KeptBuffers,
+}
+
+/// What a kept hand-out holds per object, tree and ladder.
+#[derive(Default)]
+struct KeptBuffers {
+    /// Per visible object, its entity, part and value.
+    objects: Vec<(Entity, Part, f32)>,
     /// Per visible tree, its list; per object, what it drew (at the hand-out's costs).
     lists: Vec<TreeDrawList>,
     drawn: Vec<Selected>,
+    mesh_levels: Vec<Option<u32>>,
 }
 
 impl KeptHandOut {
@@ -173,16 +188,24 @@ impl KeptHandOut {
         self.budget == *budget
             && self.score.is_some() == scored
             && self.view == visible.view
-            && self.objects.len() == visible.objects.len()
-            && ladders.len() == self.mesh_levels.len()
-            && ladders.iter().zip(&self.mesh_levels).all(|(entry, level)| {
-                level.is_none_or(|level| entry.hold.shown == level && entry.hold.fading.is_none())
-            })
-            && self.objects.iter().zip(identities(visible, ladders)).all(
-                |(&(entity, part, then), (now_entity, now_part, now))| {
+            && self.buffers.objects.len() == visible.objects.len()
+            && ladders.len() == self.buffers.mesh_levels.len()
+            && ladders
+                .iter()
+                .zip(&self.buffers.mesh_levels)
+                .all(|(entry, level)| {
+                    level.is_none_or(|level| {
+                        entry.hold.shown == level && entry.hold.fading.is_none()
+                    })
+                })
+            && self
+                .buffers
+                .objects
+                .iter()
+                .zip(identities(visible, ladders))
+                .all(|(&(entity, part, then), (now_entity, now_part, now))| {
                     entity == now_entity && part == now_part && budget.steady.same_value(then, now)
-                },
-            )
+                })
     }
 
     /// The kept hand-out again, when it still fits `rendering` at this frame's learned
@@ -207,7 +230,12 @@ impl KeptHandOut {
                     visible_instances: visible.instances_in_view(),
                     trees_drawn: self.trees_drawn,
                 };
-                (outcome, selection, self.score, self.mesh_levels.clone())
+                (
+                    outcome,
+                    selection,
+                    self.score,
+                    self.buffers.mesh_levels.clone(),
+                )
             })
     }
 
@@ -243,8 +271,8 @@ impl KeptHandOut {
         let ratio = self.repriced(scales).stats.used / self.outcome.stats.used;
         if outcome.impostors_drawn > 0
             || self.outcome.impostors_drawn > 0
-            || self.lists.len() != lists.len()
-            || self.drawn.len() != drawn.len()
+            || self.buffers.lists.len() != lists.len()
+            || self.buffers.drawn.len() != drawn.len()
             || objects.len() != drawn.len()
             || !(ratio.is_finite() && ratio > 0.0)
         {
@@ -261,7 +289,7 @@ impl KeptHandOut {
         state.changes.clear();
         state.changes.resize(lists.len(), (0.0, 0.0));
         for (i, tree) in parts() {
-            state.changes[tree].0 += self.drawn[i].cost * ratio;
+            state.changes[tree].0 += self.buffers.drawn[i].cost * ratio;
             state.changes[tree].1 += drawn[i].cost;
         }
         let blended = steady::restore_least_changed(
@@ -272,13 +300,13 @@ impl KeptHandOut {
             &mut state.restore,
         );
         for (tree, list) in lists.iter_mut().enumerate() {
-            if state.restore[tree] && *list != self.lists[tree] {
-                list.clone_from(&self.lists[tree]);
+            if state.restore[tree] && *list != self.buffers.lists[tree] {
+                list.clone_from(&self.buffers.lists[tree]);
             }
         }
         for (i, tree) in parts() {
             if state.restore[tree] {
-                let kept = steady::scaled(self.drawn[i], ratio);
+                let kept = steady::scaled(self.buffers.drawn[i], ratio);
                 outcome.drawn = steady::shifted(outcome.drawn, drawn[i], kept);
                 drawn[i] = kept;
             }

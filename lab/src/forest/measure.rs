@@ -9,6 +9,7 @@ use bevy_sherwood::cost::{FrameBound, FrameClock, FrameSample, FrameSamples};
 use bevy_sherwood::display as deadline;
 use bevy_sherwood::lod::StrategyKind;
 use bevy_sherwood::prelude::*;
+use bevy_sherwood::wind::WindStats;
 
 use super::args::{Args, Mode, Strategy};
 use crate::frame_stats::FrameStats;
@@ -35,6 +36,37 @@ struct Row {
     /// The mode and strategy when the row was taken.
     mode: LodMode,
     strategy: StrategyKind,
+    /// The plugin's CPU times when the row was taken.
+    plugin: PluginTimes,
+}
+
+/// The plugin's CPU times in the latest frame, milliseconds (the render world's of the
+/// frame rendered last).
+#[derive(Clone, Copy, Debug, Default)]
+struct PluginTimes {
+    sherwood: f32,
+    wind: f32,
+    extract: f32,
+    prepare: f32,
+}
+
+/// When the Sherwood sets started this frame, and their span last frame.
+#[derive(Resource, Default)]
+pub struct SherwoodSpan {
+    start: Option<std::time::Instant>,
+    ms: f32,
+}
+
+/// Before the Sherwood sets: the span starts.
+pub fn start_sherwood_span(mut span: ResMut<SherwoodSpan>) {
+    span.start = Some(std::time::Instant::now());
+}
+
+/// After the Sherwood sets: the span ends.
+pub fn end_sherwood_span(mut span: ResMut<SherwoodSpan>) {
+    if let Some(start) = span.start.take() {
+        span.ms = start.elapsed().as_secs_f32() * 1000.0;
+    }
 }
 
 impl Row {
@@ -112,6 +144,10 @@ impl Row {
             value_stage_ms: d.value_stage_ms,
             budget_stage_ms: d.budget_stage_ms,
             draw_lists_stage_ms: d.draw_lists_stage_ms,
+            sherwood_ms: self.plugin.sherwood,
+            wind_ms: self.plugin.wind,
+            extract_ms: self.plugin.extract,
+            prepare_ms: self.plugin.prepare,
         }
     }
 }
@@ -153,6 +189,7 @@ pub fn measure(
     stats: Res<ForestRenderStats>,
     lod: Res<LodDiagnostics>,
     ladders: Res<LadderDiagnostics>,
+    (span, wind): (Res<SherwoodSpan>, Res<WindStats>),
     mut budget: ResMut<FrameBudget>,
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -198,6 +235,12 @@ pub fn measure(
                 ladders: ladders.clone(),
                 mode: budget.mode,
                 strategy: budget.strategy,
+                plugin: PluginTimes {
+                    sherwood: span.ms,
+                    wind: wind.update_ms,
+                    extract: stats.extract_ms,
+                    prepare: stats.prepare_ms,
+                },
             });
             run.pending.pop_front();
         }

@@ -116,6 +116,14 @@ pub fn run(mut args: Args) -> AppExit {
                 measure::measure,
             )
                 .chain(),
+        )
+        .init_resource::<measure::SherwoodSpan>()
+        .add_systems(
+            PostUpdate,
+            (
+                measure::start_sherwood_span.before(SherwoodSystems::Instances),
+                measure::end_sherwood_span.after(SherwoodSystems::Stats),
+            ),
         );
     }
     app.insert_resource(args).run()
