@@ -222,6 +222,8 @@ pub(crate) struct FrameChunks {
     /// Per kind, leftover primitives waiting for [`finish`](Self::finish):
     /// `(param, instance, primitive)`.
     pending: [Vec<(u32, u32, u32)>; 4],
+    /// [`finish`](Self::finish)'s scratch: a kind's leftovers in parameter order.
+    by_param: Vec<(u32, u32, u32)>,
 }
 
 /// What [`FrameChunks::mark`] remembers.
@@ -354,10 +356,11 @@ impl FrameChunks {
     /// Chunks the gathered leftovers: per kind, by parameter, in the order they came.
     pub(crate) fn finish(&mut self) {
         for (kind, pending) in PrimitiveKind::ALL.into_iter().zip(&mut self.pending) {
-            pending.sort_by_key(|p| p.0);
+            let sorted = &mut self.by_param;
+            sort_by_param(pending, sorted);
             let per_chunk = kind.per_chunk() as usize;
             let out = &mut self.kinds[kind as usize];
-            for run in pending.chunk_by(|a, b| a.0 == b.0) {
+            for run in sorted.chunk_by(|a, b| a.0 == b.0) {
                 for piece in run.chunks(per_chunk) {
                     out.push(GpuChunk {
                         instance: GATHERED,
@@ -373,6 +376,7 @@ impl FrameChunks {
     }
 
     fn push_range(&mut self, kind: PrimitiveKind, instance: u32, range: Range<u32>, param: u32) {
+        let param = param.min(MAX_PRIMITIVE_PIXELS);
         let per_chunk = kind.per_chunk();
         let whole = range.len() as u32 / per_chunk * per_chunk;
         let out = &mut self.kinds[kind as usize];
@@ -386,5 +390,27 @@ impl FrameChunks {
         }
         self.pending[kind as usize]
             .extend((range.start + whole..range.end).map(|p| (param, instance, p)));
+    }
+}
+
+/// `pending` in ascending parameter order into `sorted`, each parameter's entries in the
+/// order they came (a stable sort): a counting sort, since parameters are at most
+/// [`MAX_PRIMITIVE_PIXELS`] (`push_range` clamps them). A large forest leaves a hundred
+/// thousand leftovers a frame, and a comparison sort of them took a millisecond.
+fn sort_by_param(pending: &[(u32, u32, u32)], sorted: &mut Vec<(u32, u32, u32)>) {
+    const PARAMS: usize = MAX_PRIMITIVE_PIXELS as usize + 1;
+    let mut starts = [0usize; PARAMS + 1];
+    for p in pending {
+        starts[p.0 as usize + 1] += 1;
+    }
+    for i in 1..=PARAMS {
+        starts[i] += starts[i - 1];
+    }
+    sorted.clear();
+    sorted.resize(pending.len(), (0, 0, 0));
+    for &p in pending {
+        let slot = &mut starts[p.0 as usize];
+        sorted[*slot] = p;
+        *slot += 1;
     }
 }

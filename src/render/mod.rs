@@ -404,6 +404,11 @@ fn extract_tree(
     moving: Option<(&RingOffsetTable, &ForestInstances)>,
     (entity, instance, global, list, shading, (fixed, local, has_parent)): ExtractedTree,
 ) {
+    // Most trees of a large forest are out of view, their lists empty: left before the
+    // lookups below.
+    if list.is_some_and(TreeDrawList::is_empty) {
+        return;
+    }
     let (Some(slot), Some(model)) = (slots.get(&instance.model.id()), models.get(&instance.model))
     else {
         return;
