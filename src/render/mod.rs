@@ -539,6 +539,22 @@ fn fill<T: Pod + Default>(buffer: &mut RawBufferVec<T>, values: &[T]) {
     }
 }
 
+/// Writes `values` into `buffer` (one default element when empty: storage buffers may not
+/// be) and releases them.
+fn upload_once<T: Pod + Default>(
+    buffer: &mut RawBufferVec<T>,
+    mut values: Vec<T>,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+) {
+    if values.is_empty() {
+        values.push(T::default());
+    }
+    *buffer.values_mut() = values;
+    buffer.write_buffer(device, queue);
+    *buffer.values_mut() = Vec::new();
+}
+
 fn upload_buffers(
     mut frame: ResMut<ForestFrame>,
     mut buffers: ResMut<ForestBuffers>,
@@ -550,13 +566,15 @@ fn upload_buffers(
     let start = Instant::now();
     let frame = &mut *frame;
     let buffers = &mut *buffers;
-    if frame.atlas_dirty || buffers.vertices.buffer().is_none() {
-        fill(&mut buffers.vertices, &frame.atlas.vertices);
-        fill(&mut buffers.indices, &frame.atlas.indices);
-        fill(&mut buffers.primitives, &frame.atlas.primitives);
-        buffers.vertices.write_buffer(&device, &queue);
-        buffers.indices.write_buffer(&device, &queue);
-        buffers.primitives.write_buffer(&device, &queue);
+    if frame.atlas_dirty {
+        // The shared geometry is written once per change of the models, and its CPU
+        // copies let go once written: with a hierarchical strategy's group impostors it
+        // is hundreds of megabytes, and on a software renderer the GPU's copy is process
+        // memory too. (A change of the models builds the atlas anew.)
+        let atlas = core::mem::take(&mut frame.atlas);
+        upload_once(&mut buffers.vertices, atlas.vertices, &device, &queue);
+        upload_once(&mut buffers.indices, atlas.indices, &device, &queue);
+        upload_once(&mut buffers.primitives, atlas.primitives, &device, &queue);
         frame.atlas_dirty = false;
     }
     if buffers.corner_indices.buffer().is_none() {
