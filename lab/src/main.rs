@@ -20,6 +20,7 @@ use bevy::app::AppExit;
 use clap::{Parser, Subcommand};
 
 mod assets;
+mod baseline;
 mod cost_replay;
 mod cost_report;
 mod forest;
@@ -69,6 +70,8 @@ enum Tool {
     TreeInfo(tree_info::Args),
     /// A long headless run: memory and learned costs over hours of spawning and moving.
     Soak(soak::Args),
+    /// The forest tool's headless Bevy app without Sherwood: the memory figures' baseline.
+    Baseline(baseline::Args),
     /// The app of `examples/minimal.rs` as a user writes it, measured as the player sees
     /// it (the main loop's period, missed vertical blanks).
     UserApp(user_app::Args),
@@ -89,6 +92,7 @@ fn main() -> ExitCode {
         Tool::PassBenchmark(args) => pass_benchmark::run(args),
         Tool::TreeInfo(args) => tree_info::run(args),
         Tool::Soak(args) => exit_code(soak::run(args)),
+        Tool::Baseline(args) => exit_code(baseline::run(args)),
         Tool::UserApp(args) => exit_code(user_app::run(args)),
         Tool::WindGust(args) => exit_code(wind_gust::run(args)),
         Tool::Gallery(args) => exit_code(gallery::run(args)),

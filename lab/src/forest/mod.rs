@@ -132,8 +132,12 @@ pub fn run(mut args: Args) -> AppExit {
 /// Bevy's default plugins: a window (presenting without vsync unless one is emulated:
 /// then with Bevy's default), or none and a loop that waits for the GPU each frame.
 fn add_bevy(app: &mut App, args: &Args) {
+    if args.headless {
+        add_headless_bevy(app);
+        return;
+    }
     let window = WindowPlugin {
-        primary_window: (!args.headless).then(|| Window {
+        primary_window: Some(Window {
             title: "bevy_sherwood forest".into(),
             resolution: WindowResolution::new(args.width, args.height),
             present_mode: if args.vsync_hz.is_some() {
@@ -143,32 +147,39 @@ fn add_bevy(app: &mut App, args: &Args) {
             },
             ..default()
         }),
-        exit_condition: if args.headless {
-            ExitCondition::DontExit
-        } else {
-            ExitCondition::OnAllClosed
-        },
+        exit_condition: ExitCondition::OnAllClosed,
         ..default()
     };
-    let assets = AssetPlugin {
+    app.add_plugins(DefaultPlugins.set(window).set(asset_plugin()));
+}
+
+/// Bevy's default plugins without a window, and a loop that waits for the GPU each frame
+/// (the forest tool's `--headless`, and the `baseline` tool).
+pub(crate) fn add_headless_bevy(app: &mut App) {
+    let window = WindowPlugin {
+        primary_window: None,
+        exit_condition: ExitCondition::DontExit,
+        ..default()
+    };
+    let plugins = DefaultPlugins.set(window).set(asset_plugin());
+    app.add_plugins(plugins.disable::<WinitPlugin>())
+        .add_plugins(ScheduleRunnerPlugin::run_loop(Duration::ZERO));
+    // Without a swapchain nothing holds the CPU back while the GPU queue grows: wait
+    // for each frame's GPU work so that frame times are real. In the `Render` set, so
+    // the wait is measured as the frame's work (which it is: the GPU's).
+    app.sub_app_mut(RenderApp).add_systems(
+        Render,
+        wait_for_gpu
+            .in_set(RenderSystems::Render)
+            .after(bevy::render::renderer::render_system),
+    );
+}
+
+/// The crate's assets, wherever the tool runs from.
+fn asset_plugin() -> AssetPlugin {
+    AssetPlugin {
         file_path: crate::assets::root().to_string_lossy().into_owned(),
         ..default()
-    };
-    let plugins = DefaultPlugins.set(window).set(assets);
-    if args.headless {
-        app.add_plugins(plugins.disable::<WinitPlugin>())
-            .add_plugins(ScheduleRunnerPlugin::run_loop(Duration::ZERO));
-        // Without a swapchain nothing holds the CPU back while the GPU queue grows: wait
-        // for each frame's GPU work so that frame times are real. In the `Render` set, so
-        // the wait is measured as the frame's work (which it is: the GPU's).
-        app.sub_app_mut(RenderApp).add_systems(
-            Render,
-            wait_for_gpu
-                .in_set(RenderSystems::Render)
-                .after(bevy::render::renderer::render_system),
-        );
-    } else {
-        app.add_plugins(plugins);
     }
 }
 
