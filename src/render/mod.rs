@@ -30,7 +30,7 @@ use bevy::asset::{embedded_asset, load_embedded_asset};
 use bevy::camera::{MainPassResolutionOverride, Viewport};
 use bevy::core_pipeline::{Core3dSystems, core_3d::main_opaque_pass_3d, schedule::Core3d};
 use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
-use bevy::math::{Affine3A, FloatOrd, Vec3A};
+use bevy::math::{Affine3A, FloatOrd};
 use bevy::platform::collections::HashMap;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
@@ -311,6 +311,7 @@ fn extract_forest(
     lights: Extract<Query<(&DirectionalLight, &GlobalTransform)>>,
     cameras: Extract<Query<(&Camera, &GlobalTransform)>>,
     device: Res<RenderDevice>,
+    mut warned_offsets: Local<bool>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
@@ -334,19 +335,37 @@ fn extract_forest(
         },
     );
 
-    // Ring offsets are kept in the instance table's order; only instances that moved get
-    // a slice.
-    let moving = offsets
-        .as_deref()
-        .filter(|t| t.moving() > 0)
-        .zip(table.as_deref());
-
     let records = &mut frame.records;
     records.instances.clear();
     records.chunks.clear();
     records.ring_offsets.clear();
     records.counts = PrimitiveCounts::default();
     records.binding_limit = device.limits().max_storage_buffer_binding_size;
+    // The wind's offsets go up whole, as the wind keeps them (a block per moving
+    // instance, in the instance table's order); each moving tree's record points at its
+    // block. Copying them tree by tree cost more than the rest of the extraction.
+    let moving = offsets
+        .as_deref()
+        .filter(|t| t.moving() > 0)
+        .zip(table.as_deref())
+        .filter(|(rings, _)| {
+            let fits = (rings.all_offsets().len() * size_of::<[f32; 4]>()) as u64
+                <= records.binding_limit;
+            if !fits && !*warned_offsets {
+                *warned_offsets = true;
+                warn!(
+                    "bevy_sherwood: the wind's ring offsets ({} rings) need more than this device binds in one buffer ({} bytes): the trees are drawn at rest",
+                    rings.all_offsets().len(),
+                    records.binding_limit
+                );
+            }
+            fits
+        });
+    if let Some((rings, _)) = moving {
+        records
+            .ring_offsets
+            .extend(rings.all_offsets().iter().map(|o| o.extend(0.0).to_array()));
+    }
     let overflowed = records.left_out > 0;
     records.left_out = 0;
     let slots = &frame.slots;
@@ -436,40 +455,35 @@ fn extract_tree(
     if list.is_empty() || !affine.is_finite() {
         return;
     }
-    let offsets = moving.and_then(|(rings, table)| rings.get(table.index_of(entity)? as usize));
+    let ring_base = moving
+        .and_then(|(rings, table)| rings.block(table.index_of(entity)? as usize, slot.rings))
+        .unwrap_or(NO_RING);
     let shading = shading
         .copied()
         .unwrap_or_else(|| TreeShading::of_model(model));
-    if !records.push(slot, list, affine, offsets, shading) {
+    if !records.push(slot, list, affine, ring_base, shading) {
         records.left_out += 1;
     }
 }
 
 impl FrameRecords {
-    /// Adds one tree's records, or nothing and `false` when they would not fit.
+    /// Adds one tree's records, or nothing and `false` when they would not fit;
+    /// `ring_base` is where its ring offsets start in `ring_offsets` ([`NO_RING`]: at
+    /// rest).
     fn push(
         &mut self,
         slot: &ModelSlot,
         list: &TreeDrawList,
         affine: Affine3A,
-        offsets: Option<&[Vec3A]>,
+        ring_base: u32,
         shading: TreeShading,
     ) -> bool {
         if self.left_out > 0 {
             // Full: the rest is left out too, and not tried one by one.
             return false;
         }
-        let (rings, chunks) = (self.ring_offsets.len(), self.chunks.mark());
+        let chunks = self.chunks.mark();
         let index = self.instances.len() as u32;
-        let mut ring_base = NO_RING;
-        if let Some(slice) = offsets
-            && slice.len() == slot.rings as usize
-            && slice.iter().any(|o| *o != Vec3A::ZERO)
-        {
-            ring_base = self.ring_offsets.len() as u32;
-            self.ring_offsets
-                .extend(slice.iter().map(|o| o.extend(0.0).to_array()));
-        }
         let (m, t) = (affine.matrix3, affine.translation);
         self.instances.push(GpuInstance {
             rows: [
@@ -485,7 +499,6 @@ impl FrameRecords {
         self.chunks.push(index, slot, list);
         if !self.fits() {
             self.instances.pop();
-            self.ring_offsets.truncate(rings);
             self.chunks.truncate(chunks);
             return false;
         }
@@ -539,6 +552,17 @@ fn fill<T: Pod + Default>(buffer: &mut RawBufferVec<T>, values: &[T]) {
     }
 }
 
+/// Gives `values` to `buffer` (padded as [`fill`] pads) instead of copying them, and takes
+/// back the buffer's last values for `values` to be filled anew (it is cleared before it
+/// is).
+fn take_into<T: Pod + Default>(buffer: &mut RawBufferVec<T>, values: &mut Vec<T>) {
+    let out = buffer.values_mut();
+    core::mem::swap(out, values);
+    if out.is_empty() {
+        out.push(T::default());
+    }
+}
+
 /// Writes `values` into `buffer` (one default element when empty: storage buffers may not
 /// be) and releases them.
 fn upload_once<T: Pod + Default>(
@@ -581,9 +605,10 @@ fn upload_buffers(
         fill(&mut buffers.corner_indices, &CORNER_INDICES);
         buffers.corner_indices.write_buffer(&device, &queue);
     }
-    fill(&mut buffers.instances, &frame.records.instances);
-    fill(&mut buffers.ring_offsets, &frame.records.ring_offsets);
-    fill(&mut buffers.gathered, &frame.records.chunks.gathered);
+    let instances = frame.records.instances.len() as u32;
+    take_into(&mut buffers.instances, &mut frame.records.instances);
+    take_into(&mut buffers.ring_offsets, &mut frame.records.ring_offsets);
+    take_into(&mut buffers.gathered, &mut frame.records.chunks.gathered);
     fill(&mut buffers.light, &[frame.light]);
     let chunks = buffers.chunks.values_mut();
     chunks.clear();
@@ -612,7 +637,7 @@ fn upload_buffers(
     if let Ok(mut stats) = mailbox.0.lock() {
         let s = buffers.batch_starts;
         *stats = ForestRenderStats {
-            instances: frame.records.instances.len() as u32,
+            instances,
             left_out: frame.records.left_out,
             counts: frame.records.counts,
             chunks: PrimitiveKind::ALL.map(|kind| kind_chunks(&s, kind)),
@@ -1007,7 +1032,7 @@ mod tests {
         let shading = TreeShading::of_model(model);
         let mut drawn = 0;
         for list in lists {
-            if records.push(slot, list, Affine3A::IDENTITY, None, shading) {
+            if records.push(slot, list, Affine3A::IDENTITY, NO_RING, shading) {
                 drawn += 1;
             } else {
                 records.left_out += 1;

@@ -743,7 +743,10 @@ fn ring_offsets_move_the_rings_on_the_gpu() {
     let (moved, _) = render("wind_moved", eye, target, move |world| {
         // The only tree: instance 0 of the instance table, whose order the offsets follow.
         spawn_full_tree(world, model);
-        let mut table = RingOffsetTable::at_rest(1);
+        // Another block first (of an instance the table does not have), so the tree's
+        // block starts past the beginning of the uploaded offsets.
+        let mut table = RingOffsetTable::at_rest(2);
+        table.set(1, &[Vec3A::NEG_X * 2.0; 7]);
         table.set(0, &offsets);
         world.insert_resource(table);
     });

@@ -54,10 +54,26 @@ impl RingOffsetTable {
 
     /// Instance `instance`'s ring offsets, or `None` while it is at rest (or past the
     /// table).
-    #[cfg(any(test, feature = "render"))]
+    #[cfg(test)]
     pub(crate) fn get(&self, instance: usize) -> Option<&[Vec3A]> {
         let [start, len] = *self.spans.get(instance)?;
         (len > 0).then(|| &self.offsets[start as usize..(start + len) as usize])
+    }
+
+    /// Where instance `instance`'s offsets start in [`all_offsets`](Self::all_offsets),
+    /// when it is moving with one offset for each of `rings` rings.
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn block(&self, instance: usize, rings: u32) -> Option<u32> {
+        let [start, len] = *self.spans.get(instance)?;
+        (len > 0 && len == rings).then_some(start)
+    }
+
+    /// Every block of offsets, the moving instances' and the free ones: what the render
+    /// pass uploads whole, each moving instance reading its block from
+    /// [`block`](Self::block) on.
+    #[cfg(any(test, feature = "render"))]
+    pub(crate) fn all_offsets(&self) -> &[Vec3A] {
+        &self.offsets
     }
 
     /// Gives `instance` the offsets `rings` (one per ring of its model); an empty slice
@@ -168,6 +184,27 @@ mod tests {
         table.set(0, &[Vec3A::X; 7]);
         assert_eq!(table.rings_held(), 100 * rings.len() + 7);
         assert_eq!(table.get(9_950), Some(&rings[..]));
+    }
+
+    #[test]
+    fn each_moving_instance_s_block_starts_where_its_offsets_are() {
+        let mut table = RingOffsetTable::at_rest(4);
+        table.set(2, &[Vec3A::X; 3]);
+        table.set(0, &[Vec3A::Y, Vec3A::Z]);
+        table.set(3, &[Vec3A::ONE; 3]);
+        table.rest(2);
+        for (instance, rings) in [(0, 2), (3, 3)] {
+            let start = table.block(instance, rings).expect("moving") as usize;
+            assert_eq!(
+                &table.all_offsets()[start..start + rings as usize],
+                table.get(instance).unwrap()
+            );
+        }
+        // At rest, past the table, or a ring count that is not the block's: none.
+        assert_eq!(table.block(1, 2), None);
+        assert_eq!(table.block(2, 3), None);
+        assert_eq!(table.block(9, 3), None);
+        assert_eq!(table.block(0, 3), None);
     }
 
     #[test]
