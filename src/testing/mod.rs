@@ -166,19 +166,25 @@ pub fn forest_of(trees: u32) -> (App, f32) {
     (app, size)
 }
 
-/// Places the view (culling and LOD; 540 pixels high, 1.2 rad vertical field of view) at
+/// Places the view (culling and LOD; 540 × 540 pixels, 1.2 rad vertical field of view) at
 /// `eye` looking at `target`, spawning it the first time.
 pub fn look_from(app: &mut App, eye: Vec3, target: Vec3) {
+    look_from_screen(app, eye, target, 540.0, 540.0);
+}
+
+/// [`look_from`] on a screen of `width` × `height` pixels (the forest example's is
+/// 960 × 540).
+pub fn look_from_screen(app: &mut App, eye: Vec3, target: Vec3, width: f32, height: f32) {
     let fov = 1.2;
-    let clip_from_world = Mat4::perspective_infinite_reverse_rh(fov, 1.0, 0.1)
+    let clip_from_world = Mat4::perspective_infinite_reverse_rh(fov, width / height, 0.1)
         * Mat4::look_at_rh(eye, target, Vec3::Y);
     let view = (
         CullView::from_clip_from_world(clip_from_world),
         LodView {
             position: eye,
             forward: (target - eye).normalize(),
-            focal_pixels: 540.0 / (2.0 * (fov * 0.5).tan()),
-            viewport_pixels: 540.0 * 540.0,
+            focal_pixels: height / (2.0 * (fov * 0.5).tan()),
+            viewport_pixels: width * height,
         },
     );
     let world = app.world_mut();
