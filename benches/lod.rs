@@ -197,9 +197,11 @@ fn stages(c: &mut Criterion) {
         }
     }
     group.finish();
-    for (name, trees, (d, [value, budget, draw_lists, wind, swaying], kept)) in reports {
+    for (name, trees, (d, [value, budget, draw_lists, wind, updated, moved, still], kept)) in
+        reports
+    {
         println!(
-            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, draw lists {draw_lists:.2}), wind {wind:.2} ms ({swaying:.0} trees updated); mean of {REPORT_FRAMES} frames, {kept} kept last frame's hand-out; {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
+            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, draw lists {draw_lists:.2}), wind {wind:.2} ms ({updated:.0} trees updated of {moved:.0} moving, {still:.0} left still); mean of {REPORT_FRAMES} frames, {kept} kept last frame's hand-out; {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
             d.visible_instances,
             value + budget + draw_lists,
             d.held_trees,
@@ -213,10 +215,10 @@ fn stages(c: &mut Criterion) {
 }
 
 /// The last frame's diagnostics; the value, budget and draw-lists stages' and the wind's
-/// mean times, and the trees the wind updated, over [`REPORT_FRAMES`] more frames; how
-/// many of them kept the hand-out.
-fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 5], u32) {
-    let mut sums = [0.0; 5];
+/// mean times, and the trees the wind updated, moved and left still (motion level of
+/// detail), over [`REPORT_FRAMES`] more frames; how many of them kept the hand-out.
+fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 7], u32) {
+    let mut sums = [0.0; 7];
     let mut kept = 0;
     for _ in 0..REPORT_FRAMES {
         bench.update();
@@ -230,6 +232,8 @@ fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 5], u32) {
             d.draw_lists_stage_ms,
             wind.update_ms,
             wind.updated as f32,
+            wind.moved as f32,
+            wind.skipped as f32,
         ]) {
             *sum += ms / REPORT_FRAMES as f32;
         }
