@@ -101,9 +101,9 @@ pub struct ForestRenderStats {
     /// transform and ring offsets gathered into the frame's records), milliseconds. It
     /// runs while neither world runs anything else.
     pub extract_ms: f32,
-    /// CPU time of preparing the frame's records for the GPU (copying them into the
-    /// buffers the pass binds), milliseconds; in the render world, beside the next
-    /// frame's main world.
+    /// CPU time of preparing the frame's records for the GPU (handing them to the buffers
+    /// the pass binds and writing those), milliseconds; in the render world, beside the
+    /// next frame's main world.
     pub prepare_ms: f32,
     /// GPU time of the pass in milliseconds, summed over views, when Bevy's
     /// `RenderDiagnosticsPlugin` is present and the adapter has timestamp queries. The
@@ -563,18 +563,14 @@ fn take_into<T: Pod + Default>(buffer: &mut RawBufferVec<T>, values: &mut Vec<T>
     }
 }
 
-/// Writes `values` into `buffer` (one default element when empty: storage buffers may not
-/// be) and releases them.
+/// Writes `values` into `buffer` (padded as [`fill`] pads) and releases them.
 fn upload_once<T: Pod + Default>(
     buffer: &mut RawBufferVec<T>,
     mut values: Vec<T>,
     device: &RenderDevice,
     queue: &RenderQueue,
 ) {
-    if values.is_empty() {
-        values.push(T::default());
-    }
-    *buffer.values_mut() = values;
+    take_into(buffer, &mut values);
     buffer.write_buffer(device, queue);
     *buffer.values_mut() = Vec::new();
 }
