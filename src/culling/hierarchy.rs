@@ -102,27 +102,58 @@ impl From<&TreeModel> for CullShape {
 /// a bent tree is culled where it is drawn. An instance keeps its shape until it is
 /// rewritten or removed; storage is reused.
 ///
+/// Instances may also share a shape ([`share`](Self::share)): far trees that sway with
+/// one block of offsets between them have one moved shape between them too.
+///
 /// As a resource it belongs to the wind stage, which writes it for the instances it moved
 /// this frame (indexed like [`ForestInstances`](crate::instance::ForestInstances));
 /// culling, which runs after it, reads it.
 #[derive(Resource, Clone, Debug, Default, PartialEq)]
 pub(crate) struct MovedShapes {
-    /// Per instance: index into `shapes`, or `NOT_MOVED`.
+    /// Per instance: index into `shapes`, `SHARED` | index into `shared`, or `NOT_MOVED`.
     slot: Vec<u32>,
     shapes: Vec<CullShape>,
     /// Per used shape: the instance it belongs to.
     owner: Vec<u32>,
     used: usize,
+    shared: Vec<CullShape>,
 }
 
 const NOT_MOVED: u32 = u32::MAX;
 
+/// The bit of a slot that points into the shared shapes.
+const SHARED: u32 = 1 << 31;
+
 impl MovedShapes {
-    /// Forgets every moved shape (keeps the storage).
+    /// Forgets every moved shape, shared ones too (keeps the storage).
     pub(crate) fn clear(&mut self) {
         self.slot.clear();
         self.owner.clear();
         self.used = 0;
+        self.shared.clear();
+    }
+
+    /// Shared shape `index`, to fill (its previous contents are unspecified; set every
+    /// field). Instances point at it with [`share`](Self::share).
+    pub(crate) fn shared_mut(&mut self, index: usize) -> &mut CullShape {
+        if self.shared.len() <= index {
+            self.shared.resize_with(index + 1, || CullShape {
+                bounds: Bounds::EMPTY,
+                trunk: Bounds::EMPTY,
+                groups: Vec::new(),
+            });
+        }
+        &mut self.shared[index]
+    }
+
+    /// Gives `instance` shared shape `index` (see [`shared_mut`](Self::shared_mut)) in
+    /// place of a shape of its own.
+    pub(crate) fn share(&mut self, instance: usize, index: usize) {
+        self.remove(instance);
+        if self.slot.len() <= instance {
+            self.slot.resize(instance + 1, NOT_MOVED);
+        }
+        self.slot[instance] = SHARED | index as u32;
     }
 
     /// Forgets `instance`'s moved shape (it is back at rest), if it has one.
@@ -131,6 +162,10 @@ impl MovedShapes {
             return;
         };
         if s == NOT_MOVED {
+            return;
+        }
+        if s & SHARED != 0 {
+            self.slot[instance] = NOT_MOVED;
             return;
         }
         // The last used shape fills the hole.
@@ -156,29 +191,31 @@ impl MovedShapes {
         if let Some(slot) = self.slot.get_mut(instance) {
             *slot = last_slot;
         }
-        if last_slot != NOT_MOVED {
+        if last_slot != NOT_MOVED && last_slot & SHARED == 0 {
             self.owner[last_slot as usize] = instance as u32;
         }
         self.slot.truncate(last);
     }
 
-    /// Instances with a moved shape.
+    /// Instances with a moved shape of their own (not counting those sharing one).
     #[cfg(test)]
     pub(crate) fn len(&self) -> usize {
         self.used
     }
 
-    /// Whether no instance moved.
+    /// Whether no instance has a moved shape, of its own or shared.
     #[cfg(test)]
     pub(crate) fn is_empty(&self) -> bool {
-        self.used == 0
+        self.slot.iter().all(|&s| s == NOT_MOVED)
     }
 
     /// The moved shape of `instance`, if it has one.
     pub(crate) fn get(&self, instance: usize) -> Option<&CullShape> {
         match self.slot.get(instance) {
-            Some(&s) if s != NOT_MOVED => Some(&self.shapes[s as usize]),
-            _ => None,
+            Some(&s) if s == NOT_MOVED => None,
+            Some(&s) if s & SHARED != 0 => self.shared.get((s & !SHARED) as usize),
+            Some(&s) => Some(&self.shapes[s as usize]),
+            None => None,
         }
     }
 
@@ -187,6 +224,9 @@ impl MovedShapes {
     pub(crate) fn shape_mut(&mut self, instance: usize) -> &mut CullShape {
         if self.slot.len() <= instance {
             self.slot.resize(instance + 1, NOT_MOVED);
+        }
+        if self.slot[instance] & SHARED != 0 && self.slot[instance] != NOT_MOVED {
+            self.slot[instance] = NOT_MOVED;
         }
         if self.slot[instance] == NOT_MOVED {
             if self.used == self.shapes.len() {

@@ -332,3 +332,61 @@ fn moved_shapes_keep_the_right_shape_per_instance_through_removals() {
         assert_eq!(moved.len(), expected.iter().filter(|h| **h).count());
     }
 }
+
+#[test]
+fn shared_and_own_moved_shapes_follow_their_instances_through_removals() {
+    let shape_of = |i: usize| CullShape {
+        bounds: Bounds {
+            min: Vec3::splat(i as f32),
+            max: Vec3::splat(i as f32 + 1.0),
+        },
+        trunk: Bounds::EMPTY,
+        groups: Vec::new(),
+    };
+    // What each instance should read: its own shape's tag, a shared shape's (100 + k), or
+    // nothing.
+    let mut moved = MovedShapes::default();
+    for k in 0..3 {
+        *moved.shared_mut(k) = shape_of(100 + k);
+    }
+    let mut expected: Vec<Option<usize>> = vec![None; 12];
+    for step in 0..300_usize {
+        let i = (step * 7 + step / 5) % expected.len();
+        match step % 5 {
+            0 => {
+                moved.remove(i);
+                expected[i] = None;
+            }
+            1 | 2 => {
+                *moved.shape_mut(i) = shape_of(i);
+                expected[i] = Some(i);
+            }
+            3 => {
+                moved.share(i, step % 3);
+                expected[i] = Some(100 + step % 3);
+            }
+            _ => {
+                // The last instance takes `i`'s place, its shape (own or shared) with it;
+                // an own shape keeps its tag, so re-tag it by the new index.
+                let n = expected.len();
+                moved.swap_remove(i, n);
+                expected.swap_remove(i);
+                if let Some(Some(tag)) = expected.get(i).copied().map(|t| t.filter(|t| *t < 100)) {
+                    assert_eq!(moved.get(i).cloned(), Some(shape_of(tag)), "step {step}");
+                    *moved.shape_mut(i) = shape_of(i);
+                    expected[i] = Some(i);
+                }
+                expected.push(None);
+            }
+        }
+        for (j, &tag) in expected.iter().enumerate() {
+            assert_eq!(
+                moved.get(j).cloned(),
+                tag.map(shape_of),
+                "step {step}, instance {j}"
+            );
+        }
+        let own = expected.iter().flatten().filter(|t| **t < 100).count();
+        assert_eq!(moved.len(), own, "step {step}");
+    }
+}

@@ -310,6 +310,10 @@ fn slowly_moving_trees_are_updated_less_often_and_hold_their_bend_in_between() {
     use crate::wind::{RingOffsetTable, WindSettings, WindStats};
 
     let mut app = forest_in_wind(600);
+    // Every moving tree computes its own offsets here (no borrowed sway).
+    app.world_mut()
+        .resource_mut::<WindSettings>()
+        .shared_sway_pixels = 0.0;
     blow(&mut app);
     let slices = |app: &App| {
         let table = app.world().resource::<RingOffsetTable>();
@@ -364,4 +368,91 @@ fn slowly_moving_trees_are_updated_less_often_and_hold_their_bend_in_between() {
         assert!(stats.moved > 0);
         assert_eq!((stats.updated, stats.held), (stats.moved, 0), "{stats:?}");
     }
+}
+
+#[test]
+fn far_trees_borrow_a_representative_s_sway_and_near_ones_compute_their_own() {
+    use crate::wind::{RingOffsetTable, WindSettings, WindStats};
+
+    let mut app = forest_in_wind(600);
+    blow(&mut app);
+    let distance_of = |app: &mut App, i: usize| {
+        let state = app
+            .world_mut()
+            .query::<&ForestState>()
+            .single(app.world())
+            .unwrap();
+        let entity = state.instances[i];
+        app.world()
+            .get::<GlobalTransform>(entity)
+            .unwrap()
+            .translation()
+            .distance(CORNER_EYE)
+    };
+    let mut offsets_before: Vec<Option<Vec<Vec3A>>> = Vec::new();
+    let mut changed = Vec::new();
+    for frame in 0..=8 {
+        app.update();
+        let stats = *app.world().resource::<WindStats>();
+        assert!(stats.shared > 0 && stats.updated > 0, "{stats:?}");
+        assert_eq!(stats.updated + stats.held + stats.shared, stats.moved);
+        // Fewer blocks computed than trees swaying with them.
+        assert!(stats.shared_updated < stats.shared, "{stats:?}");
+        let table = app.world().resource::<RingOffsetTable>().clone();
+        let n = app.world().resource::<ForestInstances>().len();
+        let shared: Vec<usize> = (0..n).filter(|&i| table.is_shared(i)).collect();
+        assert_eq!(shared.len(), stats.shared as usize);
+        let blocks: std::collections::HashSet<u32> = shared
+            .iter()
+            .map(|&i| table.block(i, table.get(i).unwrap().len() as u32).unwrap())
+            .collect();
+        assert!(blocks.len() < shared.len(), "{} blocks", blocks.len());
+        // Every moving tree is culled with a moved shape, its own or its block's.
+        let moved = app.world().resource::<MovedShapes>().clone();
+        assert_eq!(
+            (0..n).filter(|&i| moved.get(i).is_some()).count(),
+            table.moving() as usize
+        );
+        let now: Vec<Option<Vec<Vec3A>>> =
+            (0..n).map(|i| table.get(i).map(<[_]>::to_vec)).collect();
+        if frame == 0 {
+            let own: Vec<usize> = (0..n)
+                .filter(|&i| table.get(i).is_some() && !table.is_shared(i))
+                .collect();
+            let mean = |app: &mut App, v: &[usize]| {
+                v.iter().map(|&i| distance_of(app, i)).sum::<f32>() / v.len() as f32
+            };
+            let (near, far) = (mean(&mut app, &own), mean(&mut app, &shared));
+            assert!(
+                near < far,
+                "own-sway trees {near} m away, borrowing ones {far} m"
+            );
+            changed = vec![false; n];
+        } else {
+            for i in shared {
+                changed[i] |= now[i] != offsets_before[i];
+            }
+        }
+        offsets_before = now;
+    }
+    // A borrowed sway is not frozen: over the longest update interval it moved.
+    let table = app.world().resource::<RingOffsetTable>();
+    let still_shared = (0..changed.len()).filter(|&i| table.is_shared(i));
+    for i in still_shared {
+        assert!(changed[i], "borrowing instance {i} never moved");
+    }
+
+    // Off: every moving tree computes its own again.
+    app.world_mut()
+        .resource_mut::<WindSettings>()
+        .shared_sway_pixels = 0.0;
+    app.update();
+    let stats = *app.world().resource::<WindStats>();
+    let table = app.world().resource::<RingOffsetTable>();
+    assert_eq!(stats.shared, 0);
+    assert!((0..table.len()).all(|i| !table.is_shared(i)));
+    assert_eq!(
+        app.world().resource::<MovedShapes>().len(),
+        table.moving() as usize
+    );
 }

@@ -290,3 +290,58 @@ fn update_interval_halves_the_rate_as_the_motion_halves() {
     assert_eq!(update_interval(f32::INFINITY, 8.0, 8), 1);
     assert_eq!(update_interval(1.0, f32::NAN, 8), 1);
 }
+
+/// Every ring of a tree drawn with its bin's representative offsets lands within the
+/// tolerance (in pixels) of where its own offsets put it, for headings, tilts, sizes,
+/// motions and spring displacements across their ranges — strong gusts included.
+#[test]
+fn a_borrowed_sway_stays_within_the_tolerance_of_the_tree_s_own() {
+    let model = model();
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/wind/default.wind.ron");
+    let set = SpringSet::from_ron_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let rig = WindRig::new(&model, &associate(&model, &set.rules, set.springs.len()));
+    let mut rng = crate::rng::SplitMix64::new(7);
+    let mut range = |lo: f32, hi: f32| lo + (hi - lo) * rng.unit();
+    let (mut own, mut borrowed) = (Vec::new(), Vec::new());
+    let mut shared = 0;
+    for case in 0..400 {
+        let rotation = Quat::from_rotation_x(range(-0.08, 0.08))
+            * Quat::from_rotation_z(range(-0.08, 0.08))
+            * Quat::from_rotation_y(range(-4.0, 4.0));
+        let scale = range(0.6, 1.4);
+        let strength = range(0.02, 1.5);
+        let springs: Vec<Vec3> = (0..set.springs.len())
+            .map(|_| Vec3::new(range(-1.0, 1.0), range(-0.2, 0.2), range(-1.0, 1.0)) * strength)
+            .collect();
+        let largest = springs.iter().map(|d| d.length()).fold(0.0, f32::max);
+        let motion_pixels = range(0.3, 6.0);
+        let tolerance = 0.5;
+        let Some(sway) = shared_sway(rotation, scale, motion_pixels, tolerance) else {
+            continue;
+        };
+        shared += 1;
+        ring_offsets(&rig, &springs, rotation, scale, 0.0, &mut own);
+        ring_offsets(
+            &rig,
+            &springs,
+            sway.rotation,
+            sway.scale,
+            0.0,
+            &mut borrowed,
+        );
+        // World units to pixels, as the motion level of detail measures it.
+        let pixels_per_unit = motion_pixels / (largest * rig.reach());
+        let worst = own
+            .iter()
+            .zip(&borrowed)
+            .map(|(a, b)| (rotation * Vec3::from(*a - *b)).length() * scale)
+            .fold(0.0, f32::max)
+            * pixels_per_unit;
+        assert!(
+            worst <= sway.error_pixels * 1.001 && sway.error_pixels <= tolerance,
+            "case {case}: {worst} px off (bound {} px)",
+            sway.error_pixels
+        );
+    }
+    assert!(shared > 100, "{shared} of 400 cases shared");
+}

@@ -5,6 +5,7 @@
 mod asset;
 mod motion;
 mod plugin;
+mod share;
 mod spring;
 mod table;
 
@@ -15,6 +16,8 @@ pub(crate) use motion::update_interval;
 #[cfg(any(test, feature = "testing"))]
 pub(crate) use motion::{WindRig, associate, moved_bounds, ring_offsets};
 pub use plugin::{WindPlugin, WindSettings, WindStats};
+#[cfg(test)]
+pub(crate) use share::shared_sway;
 
 pub use spring::{GustDesc, SpringDesc, WindDesc};
 #[cfg(any(test, feature = "render"))]

@@ -10,6 +10,7 @@ use super::table::RingOffsetTable;
 use std::collections::HashMap;
 
 use super::motion::{WindRig, associate, moved_bounds, ring_offsets, update_interval};
+use super::share::{SwayBin, shared_sway};
 use super::spring::{FixedStepper, Spring};
 use crate::culling::{ForestCulling, InstanceVisibility, MovedShapes};
 use crate::instance::{ForestInstances, LayoutEdits};
@@ -37,6 +38,15 @@ pub struct WindSettings {
     /// The most frames between two updates of a moving tree (rounded down to a power of
     /// two). Default: `8`.
     pub max_update_interval: u32,
+    /// How far, in pixels, a far tree's rings may land from its own sway when it borrows
+    /// the offsets of a representative tree of its type, heading and size (one block of
+    /// offsets computed for every tree of the bin): a moving tree whose borrowed sway
+    /// stays within this many pixels of its own (its motion on screen times how far its
+    /// heading, tilt and size are from the representative's) borrows it, so the wind's
+    /// per-tree work and memory follow the trees that move visibly, not the forest.
+    /// 0 computes every moving tree's own offsets. Default: `0.5` (as the default spring
+    /// set's `pixel_threshold`, below which a tree is not moved at all).
+    pub shared_sway_pixels: f32,
 }
 
 impl Default for WindSettings {
@@ -46,6 +56,7 @@ impl Default for WindSettings {
             sets: Vec::new(),
             full_rate_pixels: 8.0,
             max_update_interval: 8,
+            shared_sway_pixels: 0.5,
         }
     }
 }
@@ -56,18 +67,23 @@ impl Default for WindSettings {
 pub struct WindStats {
     /// Visible instances with a spring set (candidates for motion).
     pub candidates: u32,
-    /// Instances moving: bent by the wind this frame (`updated`) or holding an earlier
-    /// frame's bend (`held`).
+    /// Instances moving: bent by the wind this frame (`updated`), holding an earlier
+    /// frame's bend (`held`) or borrowing a representative's (`shared`).
     pub moved: u32,
-    /// Moving instances whose offsets were computed this frame.
+    /// Moving instances whose own offsets were computed this frame.
     pub updated: u32,
+    /// Moving instances borrowing a representative's offsets
+    /// ([`WindSettings::shared_sway_pixels`]).
+    pub shared: u32,
+    /// Representatives' blocks of offsets computed this frame.
+    pub shared_updated: u32,
     /// Moving instances that kept their last offsets (update-rate level of detail).
     pub held: u32,
     /// Candidates left still by the motion level of detail (their farthest ring's motion,
     /// the largest spring displacement × the rig's reach, projects below the set's pixel
     /// threshold).
     pub skipped: u32,
-    /// Time of the per-instance work (ring offsets and moved bounds), milliseconds;
+    /// Time of the per-instance work (ring offsets and moved bounds, own and shared), milliseconds;
     /// stepping the springs themselves (a few per set) is not included.
     pub update_ms: f32,
     /// Ring offsets held for the moving instances after this frame (their memory:
@@ -202,6 +218,20 @@ struct WindCache {
     springs: Vec<Option<SetThisFrame>>,
     frame: u32,
     scratch: Vec<Vec3A>,
+    /// The representatives' blocks, by rig and bin.
+    shared: HashMap<(u32, SwayBin), SharedBlock>,
+}
+
+/// A representative tree's block of offsets, which the trees of its bin borrow.
+#[derive(Clone, Copy, Debug)]
+struct SharedBlock {
+    /// Its start in the offset table, and its length (its rig's ring count).
+    start: u32,
+    len: u32,
+    /// Its index among the shared moved shapes.
+    shape: u32,
+    /// The frame it was last computed.
+    updated: Option<u32>,
 }
 
 impl WindCache {
@@ -213,6 +243,7 @@ impl WindCache {
         table: &mut RingOffsetTable,
     ) {
         self.instances.clear();
+        self.shared.clear();
         table.reset(instances.len());
         self.instances
             .extend((0..instances.len()).map(|i| instance_wind(instances, models, i)));
@@ -254,13 +285,22 @@ impl WindCache {
         }
     }
 
-    /// Forgets every rig (rules or models changed).
-    fn forget_rigs(&mut self) {
+    /// Forgets every rig (rules or models changed), and the representatives' blocks
+    /// built on them: the trees that borrowed one are put at rest first.
+    fn forget_rigs(&mut self, table: &mut RingOffsetTable, moved: &mut MovedShapes) {
         self.rigs.clear();
         self.rig_index.clear();
-        for instance in self.instances.iter_mut().flatten() {
+        for (i, instance) in self.instances.iter_mut().enumerate() {
+            let Some(instance) = instance else { continue };
             instance.rig = UNRESOLVED;
+            if table.is_shared(i) {
+                come_to_rest(instance, table, moved, i);
+            }
         }
+        for block in self.shared.values() {
+            table.release_shared_block(block.start, block.len);
+        }
+        self.shared.clear();
     }
 }
 
@@ -333,7 +373,7 @@ fn move_rings(
     // must not keep moving its rings the old way, not even for a held frame.
     let refresh = sets.is_changed() || models_changed || settings.is_changed();
     if refresh {
-        cache.forget_rigs();
+        cache.forget_rigs(table, moved);
     }
     // Refilled in place: the displacement lists keep their allocations frame to frame.
     cache.springs.resize_with(settings.sets.len(), || None);
@@ -409,6 +449,58 @@ fn move_rings(
             settings.full_rate_pixels,
             settings.max_update_interval,
         );
+        if let Some(sway) = shared_sway(
+            instance.rotation,
+            instance.scale,
+            motion_pixels,
+            settings.shared_sway_pixels,
+        ) {
+            let shared = cache.shared.len() as u32;
+            let block = cache
+                .shared
+                .entry((instance.rig, sway.bin))
+                .or_insert_with(|| SharedBlock {
+                    start: table.new_shared_block(instance.rings),
+                    len: instance.rings,
+                    shape: shared,
+                    updated: None,
+                });
+            // A representative is computed at the rate of its fastest-moving borrower,
+            // staggered by block as instances are.
+            let due = block.updated.is_none_or(|at| {
+                at != frame
+                    && (frame.wrapping_add(block.shape).is_multiple_of(interval)
+                        || frame.wrapping_sub(at) >= interval)
+            });
+            if due {
+                ring_offsets(
+                    rig,
+                    displacements,
+                    sway.rotation,
+                    sway.scale,
+                    0.0,
+                    &mut cache.scratch,
+                );
+                if cache.scratch.len() != block.len as usize {
+                    come_to_rest(instance, table, moved, i);
+                    continue;
+                }
+                table.write_block(block.start, &cache.scratch);
+                moved_bounds(rig, &cache.scratch, moved.shared_mut(block.shape as usize));
+                block.updated = Some(frame);
+                counts.shared_updated += 1;
+            }
+            table.share(i, block.start, block.len);
+            moved.share(i, block.shape as usize);
+            instance.moving = true;
+            counts.shared += 1;
+            counts.moved += 1;
+            continue;
+        }
+        if table.is_shared(i) {
+            // Too near to borrow now: its own offsets this frame.
+            instance.moving = false;
+        }
         if instance.moving && !refresh && !frame.wrapping_add(i as u32).is_multiple_of(interval) {
             counts.held += 1;
             counts.moved += 1;

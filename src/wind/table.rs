@@ -1,6 +1,7 @@
 //! The ring offsets the render pass applies, held only for the instances that move: a
 //! forest's far trees (below the motion level of detail, or out of view) cost an empty
-//! span each, not a block of zeros per ring.
+//! span each, not a block of zeros per ring. Far trees that sway alike share a block
+//! ([`share`](RingOffsetTable::share)).
 
 use std::collections::HashMap;
 
@@ -14,12 +15,23 @@ use bevy::prelude::*;
 /// forest's size.
 #[derive(Resource, Clone, Debug, Default)]
 pub(crate) struct RingOffsetTable {
-    /// Per instance, `[start, len]` of its block in `offsets`; `len` 0 at rest.
-    spans: Vec<[u32; 2]>,
+    /// Per instance, its block in `offsets`; `len` 0 at rest.
+    spans: Vec<Span>,
     offsets: Vec<Vec3A>,
     /// Starts of blocks given back by instances that came to rest, by block length.
     free: HashMap<u32, Vec<u32>>,
     moving: u32,
+}
+
+/// Where one instance's offsets are.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Span {
+    start: u32,
+    /// 0 at rest.
+    len: u32,
+    /// The block is a shared one ([`RingOffsetTable::new_shared_block`]), not the
+    /// instance's own: coming to rest does not free it.
+    shared: bool,
 }
 
 impl RingOffsetTable {
@@ -34,7 +46,7 @@ impl RingOffsetTable {
     /// Puts every instance at rest and sizes the table for `instances` instances.
     pub(crate) fn reset(&mut self, instances: usize) {
         self.spans.clear();
-        self.spans.resize(instances, [0, 0]);
+        self.spans.resize(instances, Span::default());
         self.offsets.clear();
         self.free.clear();
         self.moving = 0;
@@ -56,7 +68,7 @@ impl RingOffsetTable {
     /// table).
     #[cfg(test)]
     pub(crate) fn get(&self, instance: usize) -> Option<&[Vec3A]> {
-        let [start, len] = *self.spans.get(instance)?;
+        let Span { start, len, .. } = *self.spans.get(instance)?;
         (len > 0).then(|| &self.offsets[start as usize..(start + len) as usize])
     }
 
@@ -64,7 +76,7 @@ impl RingOffsetTable {
     /// when it is moving with one offset for each of `rings` rings.
     #[cfg(any(test, feature = "render"))]
     pub(crate) fn block(&self, instance: usize, rings: u32) -> Option<u32> {
-        let [start, len] = *self.spans.get(instance)?;
+        let Span { start, len, .. } = *self.spans.get(instance)?;
         (len > 0 && len == rings).then_some(start)
     }
 
@@ -80,29 +92,86 @@ impl RingOffsetTable {
     /// puts it at rest. An instance past the table is left out: the table is sized by
     /// [`reset`](Self::reset).
     pub(crate) fn set(&mut self, instance: usize, rings: &[Vec3A]) {
-        let Some(&[_, len]) = self.spans.get(instance) else {
+        let Some(&span) = self.spans.get(instance) else {
             return;
         };
-        if len as usize != rings.len() {
+        if span.shared || span.len as usize != rings.len() {
             self.rest(instance);
             if rings.is_empty() {
                 return;
             }
             let len = rings.len() as u32;
-            let start = match self.free.get_mut(&len).and_then(Vec::pop) {
-                Some(start) => start,
-                None => {
-                    let start = self.offsets.len() as u32;
-                    self.offsets
-                        .resize(self.offsets.len() + rings.len(), Vec3A::ZERO);
-                    start
-                }
+            let start = self.allocate(len);
+            self.spans[instance] = Span {
+                start,
+                len,
+                shared: false,
             };
-            self.spans[instance] = [start, len];
             self.moving += 1;
         }
-        let [start, _] = self.spans[instance];
-        self.offsets[start as usize..start as usize + rings.len()].copy_from_slice(rings);
+        self.write_block(self.spans[instance].start, rings);
+    }
+
+    /// A block of `len` offsets: a free one of that length, or a new one at the end.
+    fn allocate(&mut self, len: u32) -> u32 {
+        match self.free.get_mut(&len).and_then(Vec::pop) {
+            Some(start) => start,
+            None => {
+                let start = self.offsets.len() as u32;
+                self.offsets
+                    .resize(self.offsets.len() + len as usize, Vec3A::ZERO);
+                start
+            }
+        }
+    }
+
+    /// A block of `len` offsets that no instance owns, for instances to
+    /// [`share`](Self::share); where it starts. It is kept until
+    /// [`release_shared_block`](Self::release_shared_block) or [`reset`](Self::reset).
+    pub(crate) fn new_shared_block(&mut self, len: u32) -> u32 {
+        self.allocate(len)
+    }
+
+    /// Writes `offsets` into the block starting at `start` (a shared block's, from
+    /// [`new_shared_block`](Self::new_shared_block)).
+    pub(crate) fn write_block(&mut self, start: u32, offsets: &[Vec3A]) {
+        let start = start as usize;
+        if let Some(block) = self.offsets.get_mut(start..start + offsets.len()) {
+            block.copy_from_slice(offsets);
+        }
+    }
+
+    /// Points `instance` at the shared block of `len` offsets at `start` instead of a
+    /// block of its own (which is freed).
+    pub(crate) fn share(&mut self, instance: usize, start: u32, len: u32) {
+        let Some(&span) = self.spans.get(instance) else {
+            return;
+        };
+        if span.shared && span.start == start && span.len == len {
+            return;
+        }
+        self.rest(instance);
+        if len == 0 {
+            return;
+        }
+        self.spans[instance] = Span {
+            start,
+            len,
+            shared: true,
+        };
+        self.moving += 1;
+    }
+
+    /// Frees a shared block (no instance may point at it any longer).
+    pub(crate) fn release_shared_block(&mut self, start: u32, len: u32) {
+        if len > 0 {
+            self.free.entry(len).or_default().push(start);
+        }
+    }
+
+    /// Whether `instance` points at a shared block.
+    pub(crate) fn is_shared(&self, instance: usize) -> bool {
+        self.spans.get(instance).is_some_and(|s| s.shared)
     }
 
     /// Puts `instance` back at rest; its block is kept for the next instance of the same
@@ -111,12 +180,14 @@ impl RingOffsetTable {
         let Some(span) = self.spans.get_mut(instance) else {
             return;
         };
-        let [start, len] = *span;
+        let Span { start, len, shared } = *span;
         if len == 0 {
             return;
         }
-        *span = [0, 0];
-        self.free.entry(len).or_default().push(start);
+        *span = Span::default();
+        if !shared {
+            self.free.entry(len).or_default().push(start);
+        }
         self.moving -= 1;
     }
 
@@ -131,11 +202,11 @@ impl RingOffsetTable {
 
     /// Adds an instance at rest at the end.
     pub(crate) fn push(&mut self) {
-        self.spans.push([0, 0]);
+        self.spans.push(Span::default());
     }
 
-    /// Ring offsets held, moving instances' and free blocks' together: the table's
-    /// memory is this times 16 bytes (plus 8 per instance).
+    /// Ring offsets held, moving instances', shared and free blocks together: the table's
+    /// memory is this times 16 bytes (plus 12 per instance).
     pub(crate) fn rings_held(&self) -> usize {
         self.offsets.len()
     }
@@ -205,6 +276,41 @@ mod tests {
         assert_eq!(table.block(2, 3), None);
         assert_eq!(table.block(9, 3), None);
         assert_eq!(table.block(0, 3), None);
+    }
+
+    #[test]
+    fn instances_sharing_a_block_read_it_and_coming_to_rest_does_not_free_it() {
+        let mut table = RingOffsetTable::at_rest(3);
+        table.set(0, &[Vec3A::X; 2]);
+        let shared = table.new_shared_block(2);
+        table.write_block(shared, &[Vec3A::Y, Vec3A::Z]);
+        // Instance 0 gives its own block back; 1 and 2 join it at rest.
+        for i in 0..3 {
+            table.share(i, shared, 2);
+        }
+        assert_eq!(table.moving(), 3);
+        for i in 0..3 {
+            assert!(table.is_shared(i));
+            assert_eq!(table.get(i), Some(&[Vec3A::Y, Vec3A::Z][..]));
+            assert_eq!(table.block(i, 2), Some(shared));
+        }
+        table.rest(1);
+        assert_eq!((table.get(1), table.moving()), (None, 2));
+        // The freed own block is reused by the next instance that moves alone; the shared
+        // one is not.
+        table.set(1, &[Vec3A::ONE; 2]);
+        assert_ne!(table.block(1, 2), Some(shared));
+        assert_eq!(table.get(0), Some(&[Vec3A::Y, Vec3A::Z][..]));
+        assert_eq!(table.rings_held(), 4);
+        // Leaving the shared block for an own one, and the block released.
+        table.set(2, &[Vec3A::NEG_X; 2]);
+        assert!(!table.is_shared(2));
+        table.rest(0);
+        table.release_shared_block(shared, 2);
+        table.set(0, &[Vec3A::NEG_Y; 2]);
+        assert_eq!(table.block(0, 2), Some(shared));
+        assert_eq!(table.get(2), Some(&[Vec3A::NEG_X; 2][..]));
+        assert_eq!(table.rings_held(), 6);
     }
 
     #[test]
