@@ -213,13 +213,15 @@ fn stages(c: &mut Criterion) {
                 moved,
                 still,
                 rings,
+                shared,
+                blocks,
             ],
             kept,
         ),
     ) in reports
     {
         println!(
-            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, draw lists {draw_lists:.2}), wind {wind:.2} ms ({updated:.0} trees updated of {moved:.0} moving, {still:.0} left still, {rings:.0} ring offsets held); mean of {REPORT_FRAMES} frames, {kept} kept last frame's hand-out; {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
+            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, draw lists {draw_lists:.2}), wind {wind:.2} ms ({updated:.0} trees updated and {shared:.0} borrowing {blocks:.0} blocks computed, of {moved:.0} moving; {still:.0} left still, {rings:.0} ring offsets held); mean of {REPORT_FRAMES} frames, {kept} kept last frame's hand-out; {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
             d.visible_instances,
             value + budget + draw_lists,
             d.held_trees,
@@ -235,8 +237,8 @@ fn stages(c: &mut Criterion) {
 /// The last frame's diagnostics; the value, budget and draw-lists stages' and the wind's
 /// mean times, and the trees the wind updated, moved and left still (motion level of
 /// detail), over [`REPORT_FRAMES`] more frames; how many of them kept the hand-out.
-fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 8], u32) {
-    let mut sums = [0.0; 8];
+fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 10], u32) {
+    let mut sums = [0.0; 10];
     let mut kept = 0;
     for _ in 0..REPORT_FRAMES {
         bench.update();
@@ -253,6 +255,8 @@ fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 8], u32) {
             wind.moved as f32,
             wind.skipped as f32,
             wind.rings_held as f32,
+            wind.shared as f32,
+            wind.shared_updated as f32,
         ]) {
             *sum += ms / REPORT_FRAMES as f32;
         }

@@ -12,7 +12,11 @@
 //! - `wind/2000_visible/every_tree_moves`: the same, with the shipped update-rate level
 //!   of detail (`WindSettings::full_rate_pixels`). Goal (release, one core — the stage is
 //!   one system): < 2 ms.
-//! - `wind/2000_visible/shipped_threshold`: the same view with the shipped settings.
+//! - `wind/2000_visible/shipped_threshold_own_sway`: the same view with the shipped
+//!   settings except that every moving tree computes its own offsets
+//!   (`WindSettings::shared_sway_pixels` 0).
+//! - `wind/2000_visible/shipped_threshold`: the same view with the shipped settings (far
+//!   trees borrow a representative's sway).
 //!
 //! Then two tables, the shapes of thesis figures 5.8 and 5.9: the stage's cost as the
 //! camera backs away from the forest, and as the springs come to rest after the wind drops.
@@ -87,16 +91,18 @@ fn wind(c: &mut Criterion) {
     let mut group = c.benchmark_group("wind/2000_visible");
     group.sample_size(20);
     group.measurement_time(Duration::from_secs(5));
-    let shipped_rate = app.world().resource::<WindSettings>().full_rate_pixels;
-    for (name, threshold, full_rate_pixels) in [
-        ("every_tree_moves_every_frame", 0.0, 0.0),
-        ("every_tree_moves", 0.0, shipped_rate),
-        ("shipped_threshold", 0.5, shipped_rate),
+    let shipped = app.world().resource::<WindSettings>().clone();
+    let (rate, shared) = (shipped.full_rate_pixels, shipped.shared_sway_pixels);
+    for (name, threshold, full_rate_pixels, shared_sway_pixels) in [
+        ("every_tree_moves_every_frame", 0.0, 0.0, 0.0),
+        ("every_tree_moves", 0.0, rate, 0.0),
+        ("shipped_threshold_own_sway", 0.5, rate, 0.0),
+        ("shipped_threshold", 0.5, rate, shared),
     ] {
         edit_springs(&mut app, |set| set.pixel_threshold = threshold);
-        app.world_mut()
-            .resource_mut::<WindSettings>()
-            .full_rate_pixels = full_rate_pixels;
+        let mut settings = app.world_mut().resource_mut::<WindSettings>();
+        settings.full_rate_pixels = full_rate_pixels;
+        settings.shared_sway_pixels = shared_sway_pixels;
         // Long enough for every update interval to come round.
         let (_, stats) = run(&mut app, 16);
         // The stage's cost per updated tree, over 64 frames: unlike the stage's time, it
@@ -110,12 +116,14 @@ fn wind(c: &mut Criterion) {
         }
         let rings = app.world().resource::<WindStats>().rings_held;
         println!(
-            "{name}: {} candidates, {} moved ({} updated, {} held), {} skipped; {rings} rings held; \
-             {:.2} µs per updated tree, {} updated per frame on average",
+            "{name}: {} candidates, {} moved ({} updated, {} held, {} borrowing {} blocks computed), \
+             {} skipped; {rings} rings held; {:.2} µs per updated tree, {} updated per frame on average",
             stats.candidates,
             stats.moved,
             stats.updated,
             stats.held,
+            stats.shared,
+            stats.shared_updated,
             stats.skipped,
             ms * 1000.0 / updated.max(1) as f32,
             updated / 64,

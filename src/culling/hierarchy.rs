@@ -149,6 +149,9 @@ impl MovedShapes {
     /// Gives `instance` shared shape `index` (see [`shared_mut`](Self::shared_mut)) in
     /// place of a shape of its own.
     pub(crate) fn share(&mut self, instance: usize, index: usize) {
+        if self.slot.get(instance) == Some(&(SHARED | index as u32)) {
+            return;
+        }
         self.remove(instance);
         if self.slot.len() <= instance {
             self.slot.resize(instance + 1, NOT_MOVED);

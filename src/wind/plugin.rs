@@ -10,7 +10,7 @@ use super::table::RingOffsetTable;
 use std::collections::HashMap;
 
 use super::motion::{WindRig, associate, moved_bounds, ring_offsets, update_interval};
-use super::share::{SwayBin, shared_sway};
+use super::share::{LEVELS, SwayBin, borrowing_level, representatives};
 use super::spring::{FixedStepper, Spring};
 use crate::culling::{ForestCulling, InstanceVisibility, MovedShapes};
 use crate::instance::{ForestInstances, LayoutEdits};
@@ -187,6 +187,29 @@ struct InstanceWind {
     rings: u32,
     /// Its offsets (and moved culling shape) are not at rest.
     moving: bool,
+    /// Per representative level, how far its rings land from its own per pixel of motion
+    /// when it borrows that level's representative (infinite: it cannot).
+    borrow_errors: [f32; LEVELS],
+    /// Per level, its representative's block in [`WindCache::shared_blocks`], or
+    /// [`UNRESOLVED`] until it first borrows at that level.
+    blocks: [u32; LEVELS],
+}
+
+impl InstanceWind {
+    /// Sets its place and orientation, and the representatives' errors they give.
+    fn place(&mut self, rotation: Quat, translation: Vec3) {
+        self.rotation = rotation;
+        self.translation = translation;
+        self.borrow_errors = [f32::INFINITY; LEVELS];
+        for (error, r) in self
+            .borrow_errors
+            .iter_mut()
+            .zip(representatives(rotation, self.scale))
+        {
+            *error = r.error_per_pixel;
+        }
+        self.blocks = [UNRESOLVED; LEVELS];
+    }
 }
 
 const UNRESOLVED: u32 = u32::MAX;
@@ -218,8 +241,10 @@ struct WindCache {
     springs: Vec<Option<SetThisFrame>>,
     frame: u32,
     scratch: Vec<Vec3A>,
-    /// The representatives' blocks, by rig and bin.
-    shared: HashMap<(u32, SwayBin), SharedBlock>,
+    /// The representatives' blocks.
+    shared_blocks: Vec<SharedBlock>,
+    /// Index into `shared_blocks` by rig and bin.
+    shared_index: HashMap<(u32, SwayBin), u32>,
 }
 
 /// A representative tree's block of offsets, which the trees of its bin borrow.
@@ -228,8 +253,9 @@ struct SharedBlock {
     /// Its start in the offset table, and its length (its rig's ring count).
     start: u32,
     len: u32,
-    /// Its index among the shared moved shapes.
-    shape: u32,
+    /// The representative's rotation and scale.
+    rotation: Quat,
+    scale: f32,
     /// The frame it was last computed.
     updated: Option<u32>,
 }
@@ -243,7 +269,8 @@ impl WindCache {
         table: &mut RingOffsetTable,
     ) {
         self.instances.clear();
-        self.shared.clear();
+        self.shared_blocks.clear();
+        self.shared_index.clear();
         table.reset(instances.len());
         self.instances
             .extend((0..instances.len()).map(|i| instance_wind(instances, models, i)));
@@ -279,8 +306,7 @@ impl WindCache {
             if let Some(Some(wind)) = self.instances.get_mut(i as usize) {
                 let (_, rotation, translation) =
                     instances.transforms[i as usize].to_scale_rotation_translation();
-                wind.rotation = rotation;
-                wind.translation = translation;
+                wind.place(rotation, translation);
             }
         }
     }
@@ -293,14 +319,16 @@ impl WindCache {
         for (i, instance) in self.instances.iter_mut().enumerate() {
             let Some(instance) = instance else { continue };
             instance.rig = UNRESOLVED;
+            instance.blocks = [UNRESOLVED; LEVELS];
             if table.is_shared(i) {
                 come_to_rest(instance, table, moved, i);
             }
         }
-        for block in self.shared.values() {
+        for block in &self.shared_blocks {
             table.release_shared_block(block.start, block.len);
         }
-        self.shared.clear();
+        self.shared_blocks.clear();
+        self.shared_index.clear();
     }
 }
 
@@ -313,7 +341,7 @@ fn instance_wind(
     let id = instances.model_id(i)?;
     let model = models.get(id)?;
     let (_, rotation, translation) = instances.transforms[i].to_scale_rotation_translation();
-    Some(InstanceWind {
+    let mut wind = InstanceWind {
         model: id,
         motion: instances.motions[i],
         scale: instances.scales[i],
@@ -322,7 +350,11 @@ fn instance_wind(
         rig: UNRESOLVED,
         rings: model.rings.len() as u32,
         moving: false,
-    })
+        borrow_errors: [f32::INFINITY; LEVELS],
+        blocks: [UNRESOLVED; LEVELS],
+    };
+    wind.place(rotation, translation);
+    Some(wind)
 }
 
 #[expect(
@@ -449,35 +481,32 @@ fn move_rings(
             settings.full_rate_pixels,
             settings.max_update_interval,
         );
-        if let Some(sway) = shared_sway(
-            instance.rotation,
-            instance.scale,
+        if let Some(level) = borrowing_level(
+            &instance.borrow_errors,
             motion_pixels,
             settings.shared_sway_pixels,
         ) {
-            let shared = cache.shared.len() as u32;
-            let block = cache
-                .shared
-                .entry((instance.rig, sway.bin))
-                .or_insert_with(|| SharedBlock {
-                    start: table.new_shared_block(instance.rings),
-                    len: instance.rings,
-                    shape: shared,
-                    updated: None,
-                });
+            let b = shared_block(
+                &mut cache.shared_blocks,
+                &mut cache.shared_index,
+                table,
+                instance,
+                level,
+            ) as usize;
+            let block = &mut cache.shared_blocks[b];
             // A representative is computed at the rate of its fastest-moving borrower,
             // staggered by block as instances are.
             let due = block.updated.is_none_or(|at| {
                 at != frame
-                    && (frame.wrapping_add(block.shape).is_multiple_of(interval)
+                    && (frame.wrapping_add(b as u32).is_multiple_of(interval)
                         || frame.wrapping_sub(at) >= interval)
             });
             if due {
                 ring_offsets(
                     rig,
                     displacements,
-                    sway.rotation,
-                    sway.scale,
+                    block.rotation,
+                    block.scale,
                     0.0,
                     &mut cache.scratch,
                 );
@@ -486,12 +515,12 @@ fn move_rings(
                     continue;
                 }
                 table.write_block(block.start, &cache.scratch);
-                moved_bounds(rig, &cache.scratch, moved.shared_mut(block.shape as usize));
+                moved_bounds(rig, &cache.scratch, moved.shared_mut(b));
                 block.updated = Some(frame);
                 counts.shared_updated += 1;
             }
             table.share(i, block.start, block.len);
-            moved.share(i, block.shape as usize);
+            moved.share(i, b);
             instance.moving = true;
             counts.shared += 1;
             counts.moved += 1;
@@ -557,6 +586,33 @@ fn resolve_rig<'a>(
         };
     }
     rigs.get(instance.rig as usize)
+}
+
+/// The block of `instance`'s representative at `level` (under its resolved rig), made on
+/// first use.
+fn shared_block(
+    blocks: &mut Vec<SharedBlock>,
+    index: &mut HashMap<(u32, SwayBin), u32>,
+    table: &mut RingOffsetTable,
+    instance: &mut InstanceWind,
+    level: usize,
+) -> u32 {
+    if instance.blocks[level] == UNRESOLVED {
+        let representative = representatives(instance.rotation, instance.scale)[level];
+        instance.blocks[level] = *index
+            .entry((instance.rig, representative.bin))
+            .or_insert_with(|| {
+                blocks.push(SharedBlock {
+                    start: table.new_shared_block(instance.rings),
+                    len: instance.rings,
+                    rotation: representative.rotation,
+                    scale: representative.scale,
+                    updated: None,
+                });
+                blocks.len() as u32 - 1
+            });
+    }
+    instance.blocks[level]
 }
 
 /// Puts a still instance back at rest, once.

@@ -16,7 +16,7 @@ use bevy::math::{Quat, Vec3};
 
 /// Bin levels: level `l` has `BASE_HEADINGS << l` headings and size bins
 /// `BASE_SIZE_STEP / 2^l` wide (natural log of the scale).
-const LEVELS: u32 = 3;
+pub(crate) const LEVELS: usize = 3;
 const BASE_HEADINGS: u32 = 16;
 const BASE_SIZE_STEP: f32 = 0.1;
 
@@ -30,50 +30,39 @@ pub(crate) struct SwayBin {
 
 /// A bin and the representative tree whose offsets its members borrow.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct SharedSway {
+pub(crate) struct Representative {
     pub bin: SwayBin,
     /// The representative's rotation (a heading about +Y) and scale.
     pub rotation: Quat,
     pub scale: f32,
-    /// The most any ring of the tree lands off its own offsets, pixels (the bound above).
-    pub error_pixels: f32,
+    /// How far a member's rings may land from its own, per pixel of its motion: the
+    /// angle between its rotation and the representative's plus their scales' ratio's
+    /// difference from 1 (the bound above).
+    pub error_per_pixel: f32,
 }
 
-/// The coarsest bin whose representative moves a tree of `rotation` and `scale`, whose
-/// farthest ring moves `motion_pixels`, within `tolerance_pixels` of its own motion; `None`
-/// when no level is fine enough (the tree computes its own), or for a tolerance of 0 or
-/// less, or inputs that are not finite.
-pub(crate) fn shared_sway(
-    rotation: Quat,
-    scale: f32,
-    motion_pixels: f32,
-    tolerance_pixels: f32,
-) -> Option<SharedSway> {
-    if !(tolerance_pixels > 0.0
-        && motion_pixels.is_finite()
-        && scale.is_finite()
-        && scale > 0.0
-        && rotation.is_finite())
-    {
-        return None;
+/// A tree's representative at every level, coarsest first; empty for a rotation or scale
+/// that is not finite (or a scale of 0 or less): such a tree computes its own.
+pub(crate) fn representatives(rotation: Quat, scale: f32) -> Vec<Representative> {
+    if !(scale.is_finite() && scale > 0.0 && rotation.is_finite() && rotation.length() > 0.0) {
+        return Vec::new();
     }
     let rotation = rotation.normalize();
     // The heading: where the model's +X points, seen from above.
     let x = rotation * Vec3::X;
     let heading = (-x.z).atan2(x.x);
     let log_scale = scale.ln();
-    for level in 0..LEVELS {
-        let headings = BASE_HEADINGS << level;
-        let step = std::f32::consts::TAU / headings as f32;
-        let heading_bin = (heading / step).round().rem_euclid(headings as f32) as u32 % headings;
-        let representative = Quat::from_rotation_y(heading_bin as f32 * step);
-        let size_step = BASE_SIZE_STEP / (1 << level) as f32;
-        let size_bin = (log_scale / size_step).round();
-        let representative_scale = (size_bin * size_step).exp();
-        let angle = rotation.angle_between(representative);
-        let error_pixels = motion_pixels * (angle + (scale / representative_scale - 1.0).abs());
-        if error_pixels <= tolerance_pixels {
-            return Some(SharedSway {
+    (0..LEVELS)
+        .map(|level| {
+            let headings = BASE_HEADINGS << level;
+            let step = std::f32::consts::TAU / headings as f32;
+            let heading_bin =
+                (heading / step).round().rem_euclid(headings as f32) as u32 % headings;
+            let representative = Quat::from_rotation_y(heading_bin as f32 * step);
+            let size_step = BASE_SIZE_STEP / (1 << level) as f32;
+            let size_bin = (log_scale / size_step).round();
+            let representative_scale = (size_bin * size_step).exp();
+            Representative {
                 bin: SwayBin {
                     level: level as u8,
                     heading: heading_bin as u16,
@@ -81,11 +70,43 @@ pub(crate) fn shared_sway(
                 },
                 rotation: representative,
                 scale: representative_scale,
-                error_pixels,
-            });
-        }
+                error_per_pixel: rotation.angle_between(representative)
+                    + (scale / representative_scale - 1.0).abs(),
+            }
+        })
+        .collect()
+}
+
+/// The coarsest of a tree's levels (`error_per_pixel` of each, from
+/// [`representatives`]) whose representative moves it within `tolerance_pixels` of its
+/// own motion when its farthest ring moves `motion_pixels`; `None` when none is fine
+/// enough, or for a tolerance of 0 or less.
+pub(crate) fn borrowing_level(
+    error_per_pixel: &[f32],
+    motion_pixels: f32,
+    tolerance_pixels: f32,
+) -> Option<usize> {
+    if !(tolerance_pixels > 0.0) {
+        return None;
     }
-    None
+    error_per_pixel
+        .iter()
+        .position(|e| motion_pixels * e <= tolerance_pixels)
+}
+
+/// [`representatives`] and [`borrowing_level`] together: the representative a tree
+/// borrows from, and the most its rings land off its own, pixels.
+#[cfg(test)]
+pub(crate) fn shared_sway(
+    rotation: Quat,
+    scale: f32,
+    motion_pixels: f32,
+    tolerance_pixels: f32,
+) -> Option<(Representative, f32)> {
+    let all = representatives(rotation, scale);
+    let errors: Vec<f32> = all.iter().map(|r| r.error_per_pixel).collect();
+    let level = borrowing_level(&errors, motion_pixels, tolerance_pixels)?;
+    Some((all[level], motion_pixels * all[level].error_per_pixel))
 }
 
 #[cfg(test)]
@@ -99,12 +120,12 @@ mod tests {
         assert!(shared_sway(r, 1.0, 400.0, 0.5).is_none());
         assert!(shared_sway(r, f32::NAN, 1.0, 0.5).is_none());
         assert!(shared_sway(r, 0.0, 1.0, 0.5).is_none());
-        let far = shared_sway(r, 1.0, 1.0, 0.5).expect("shares");
+        let (far, _) = shared_sway(r, 1.0, 1.0, 0.5).expect("shares");
         assert_eq!(far.bin.level, 0);
         // Nearer trees need finer bins, and trees of one bin share one representative.
-        let nearer = shared_sway(r, 1.0, 3.0, 0.5).expect("shares");
+        let (nearer, _) = shared_sway(r, 1.0, 3.0, 0.5).expect("shares");
         assert!(nearer.bin.level > 0);
-        let neighbour = shared_sway(Quat::from_rotation_y(0.21), 1.01, 1.0, 0.5).unwrap();
+        let (neighbour, _) = shared_sway(Quat::from_rotation_y(0.21), 1.01, 1.0, 0.5).unwrap();
         assert_eq!((neighbour.bin, neighbour.rotation), (far.bin, far.rotation));
     }
 }

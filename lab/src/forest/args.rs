@@ -95,6 +95,14 @@ pub struct Args {
     /// No wind.
     #[arg(long)]
     pub no_wind: bool,
+    /// Every tree computes its own sway (`WindSettings::shared_sway_pixels` = 0): far
+    /// trees do not borrow a representative's.
+    #[arg(long)]
+    pub own_sway: bool,
+    /// Simulated time advances 1/60 s per frame, however long a frame takes: the wind is
+    /// the same at the same frame in every run (for comparing pictures with wind on).
+    #[arg(long)]
+    pub fixed_step: bool,
     /// Predict with the calibration alone (no online learning).
     #[arg(long)]
     pub no_correction: bool,

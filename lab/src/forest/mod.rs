@@ -78,6 +78,11 @@ pub fn run(mut args: Args) -> AppExit {
     })
     .insert_resource(WindSettings {
         enabled: !args.no_wind,
+        shared_sway_pixels: if args.own_sway {
+            0.0
+        } else {
+            WindSettings::default().shared_sway_pixels
+        },
         ..default()
     })
     .insert_resource(CostSettings {
@@ -87,6 +92,11 @@ pub fn run(mut args: Args) -> AppExit {
     })
     .init_resource::<Run>()
     .add_systems(Startup, scene::setup);
+    if args.fixed_step {
+        app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+            Duration::from_secs(1) / 60,
+        ));
+    }
     if let Some(refresh_hz) = args.vsync_hz {
         app.add_plugins(EmulatedVsyncPlugin { refresh_hz });
     }
