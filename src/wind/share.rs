@@ -86,7 +86,7 @@ pub(crate) fn borrowing_level(
     motion_pixels: f32,
     tolerance_pixels: f32,
 ) -> Option<usize> {
-    if !(tolerance_pixels > 0.0) {
+    if tolerance_pixels.is_nan() || tolerance_pixels <= 0.0 {
         return None;
     }
     error_per_pixel
