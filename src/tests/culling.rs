@@ -299,16 +299,20 @@ fn a_swayed_tree_is_tested_where_it_moved() {
     assert!(moved.is_empty() && moved.get(0).is_none());
 }
 
-#[test]
-fn moved_shapes_keep_the_right_shape_per_instance_through_removals() {
-    let shape_of = |i: usize| CullShape {
+/// A shape told apart from the others by `tag`.
+fn shape_of(tag: usize) -> CullShape {
+    CullShape {
         bounds: Bounds {
-            min: Vec3::splat(i as f32),
-            max: Vec3::splat(i as f32 + 1.0),
+            min: Vec3::splat(tag as f32),
+            max: Vec3::splat(tag as f32 + 1.0),
         },
         trunk: Bounds::EMPTY,
         groups: Vec::new(),
-    };
+    }
+}
+
+#[test]
+fn moved_shapes_keep_the_right_shape_per_instance_through_removals() {
     let mut moved = MovedShapes::default();
     let mut expected: Vec<bool> = vec![false; 12];
     // A fixed interleaving of writes and removals, including removing the absent.
@@ -335,14 +339,6 @@ fn moved_shapes_keep_the_right_shape_per_instance_through_removals() {
 
 #[test]
 fn shared_and_own_moved_shapes_follow_their_instances_through_removals() {
-    let shape_of = |i: usize| CullShape {
-        bounds: Bounds {
-            min: Vec3::splat(i as f32),
-            max: Vec3::splat(i as f32 + 1.0),
-        },
-        trunk: Bounds::EMPTY,
-        groups: Vec::new(),
-    };
     // What each instance should read: its own shape's tag, a shared shape's (100 + k), or
     // nothing.
     let mut moved = MovedShapes::default();

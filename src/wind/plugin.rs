@@ -527,8 +527,9 @@ fn move_rings(
             continue;
         }
         if table.is_shared(i) {
-            // Too near to borrow now: its own offsets this frame.
-            instance.moving = false;
+            // Too near to borrow now: its own offsets this frame (from rest, so that it
+            // never points at a block it no longer borrows).
+            come_to_rest(instance, table, moved, i);
         }
         if instance.moving && !refresh && !frame.wrapping_add(i as u32).is_multiple_of(interval) {
             counts.held += 1;
