@@ -346,9 +346,11 @@ fn shared_and_own_moved_shapes_follow_their_instances_through_removals() {
         *moved.shared_mut(k) = shape_of(100 + k);
     }
     let mut expected: Vec<Option<usize>> = vec![None; 12];
-    for step in 0..300_usize {
-        let i = (step * 7 + step / 5) % expected.len();
-        match step % 5 {
+    // A seeded random interleaving of every operation on every instance.
+    let mut rng = crate::rng::SplitMix64::new(3);
+    for step in 0..2_000_usize {
+        let i = rng.next_u64() as usize % expected.len();
+        match rng.next_u64() % 5 {
             0 => {
                 moved.remove(i);
                 expected[i] = None;
