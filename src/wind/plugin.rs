@@ -153,18 +153,23 @@ fn step_springs(
             *slot = None;
             continue;
         };
-        if slot.as_ref().is_none_or(|(id, _, _)| *id != handle.id()) || sets.is_changed() {
+        let arrived = slot.as_ref().is_none_or(|(id, _, _)| *id != handle.id());
+        if arrived || sets.is_changed() {
             let mut springs: Vec<Spring> = set.springs.iter().cloned().map(Spring::new).collect();
-            // An edited set keeps its springs' motion, so trees do not snap to rest.
-            if let Some((id, old, _)) = slot.as_ref()
-                && *id == handle.id()
-            {
+            let mut stepper = FixedStepper::new(set.time_step);
+            if arrived {
+                // A set whose file loaded a few frames in stands where it would have had
+                // it been there from the start: the wind at a given time does not depend
+                // on when loading finished (runs that compare pictures rely on it).
+                stepper.catch_up(&mut springs, time.elapsed_secs() - time.delta_secs());
+            } else if let Some((_, old, _)) = slot.as_ref() {
+                // An edited set keeps its springs' motion, so trees do not snap to rest.
                 for (new, old) in springs.iter_mut().zip(old) {
                     new.displacement = old.displacement;
                     new.velocity = old.velocity;
                 }
             }
-            *slot = Some((handle.id(), springs, FixedStepper::new(set.time_step)));
+            *slot = Some((handle.id(), springs, stepper));
         }
         if let Some((_, springs, stepper)) = slot.as_mut() {
             stepper.advance(springs, time.delta_secs());
@@ -258,6 +263,8 @@ struct SharedBlock {
     scale: f32,
     /// The frame it was last computed.
     updated: Option<u32>,
+    /// The last frame a tree borrowed it.
+    used: Option<u32>,
 }
 
 impl WindCache {
@@ -495,12 +502,14 @@ fn move_rings(
             ) as usize;
             let block = &mut cache.shared_blocks[b];
             // A representative is computed at the rate of its fastest-moving borrower,
-            // staggered by block as instances are.
-            let due = block.updated.is_none_or(|at| {
-                at != frame
-                    && (frame.wrapping_add(b as u32).is_multiple_of(interval)
-                        || frame.wrapping_sub(at) >= interval)
-            });
+            // staggered by block as instances are (on a grid of frames, so the same frames
+            // show the same wind in every run), and anew when it comes back into use.
+            let kept_up = block
+                .used
+                .is_some_and(|used| used == frame || used.wrapping_add(1) == frame);
+            let due = block.updated != Some(frame)
+                && (!kept_up || frame.wrapping_add(b as u32).is_multiple_of(interval));
+            block.used = Some(frame);
             if due {
                 ring_offsets(
                     rig,
@@ -609,6 +618,7 @@ fn shared_block(
                     rotation: representative.rotation,
                     scale: representative.scale,
                     updated: None,
+                    used: None,
                 });
                 blocks.len() as u32 - 1
             });

@@ -209,7 +209,30 @@ impl FixedStepper {
         }
         steps
     }
+
+    /// Advances `springs` by the whole steps in `elapsed` seconds (at most
+    /// [`CATCH_UP_SECONDS`]): for springs that start after the clock did, so that they
+    /// stand where they would had they run from the start. The fraction of a step left
+    /// over is dropped, as a stepper that ran all along would carry it.
+    pub(crate) fn catch_up(&mut self, springs: &mut [Spring], elapsed: f32) -> u32 {
+        if !(elapsed.is_finite() && elapsed > 0.0) {
+            return 0;
+        }
+        let steps = (elapsed.min(CATCH_UP_SECONDS) / self.step).round() as u32;
+        for _ in 0..steps {
+            for spring in springs.iter_mut() {
+                spring.step(self.step);
+            }
+        }
+        steps
+    }
 }
+
+/// The most a spring set that loads late is advanced to catch up with the clock,
+/// seconds: well past its springs' memory (a damping of 0.995 per 1/120 s step forgets
+/// in about 2 s), so a later one stands where it would have anyway, in a steady gusty
+/// state.
+pub(crate) const CATCH_UP_SECONDS: f32 = 10.0;
 
 #[cfg(test)]
 mod tests {
@@ -336,6 +359,35 @@ mod tests {
         }
         assert!((fast[0].displacement - slow[0].displacement).length() < 1e-5);
         assert_eq!(a.advance(&mut fast, f32::NAN), 0);
+    }
+
+    #[test]
+    fn springs_that_start_late_catch_up_with_the_ones_that_ran_all_along() {
+        let gusty = || {
+            vec![Spring::new(SpringDesc {
+                seed: 4,
+                ..Default::default()
+            })]
+        };
+        let frame = 1.0 / 60.0;
+        let mut all_along = gusty();
+        let mut clock = FixedStepper::new(1.0 / 120.0);
+        for _ in 0..200 {
+            clock.advance(&mut all_along, frame);
+        }
+        for late in [1_u32, 3, 17] {
+            let mut springs = gusty();
+            let mut stepper = FixedStepper::new(1.0 / 120.0);
+            stepper.catch_up(&mut springs, late as f32 * frame);
+            for _ in late..200 {
+                stepper.advance(&mut springs, frame);
+            }
+            assert_eq!(springs, all_along, "started {late} frames late");
+        }
+        // Long after the start: only the last CATCH_UP_SECONDS are simulated.
+        let mut springs = gusty();
+        let steps = FixedStepper::new(0.01).catch_up(&mut springs, 1.0e6);
+        assert_eq!(steps, (CATCH_UP_SECONDS / 0.01).round() as u32);
     }
 
     #[test]

@@ -99,6 +99,11 @@ pub struct Args {
     /// trees do not borrow a representative's.
     #[arg(long)]
     pub own_sway: bool,
+    /// Every moving tree's sway is computed every frame (`WindSettings::full_rate_pixels`
+    /// = 0: no update-rate level of detail), the reference the wind's levels of detail
+    /// are compared against.
+    #[arg(long)]
+    pub wind_every_frame: bool,
     /// Simulated time advances 1/60 s per frame, however long a frame takes: the wind is
     /// the same at the same frame in every run (for comparing pictures with wind on).
     #[arg(long)]

@@ -83,6 +83,11 @@ pub fn run(mut args: Args) -> AppExit {
         } else {
             WindSettings::default().shared_sway_pixels
         },
+        full_rate_pixels: if args.wind_every_frame {
+            0.0
+        } else {
+            WindSettings::default().full_rate_pixels
+        },
         ..default()
     })
     .insert_resource(CostSettings {
