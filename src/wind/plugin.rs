@@ -307,6 +307,35 @@ impl WindCache {
         }
     }
 
+    /// Follows the instance table: its edits, or a new layout, and the instances that
+    /// moved. Whether the instances' models changed.
+    fn follow_layout(
+        &mut self,
+        instances: &ForestInstances,
+        models: &Assets<TreeModel>,
+        table: &mut RingOffsetTable,
+        moved: &mut MovedShapes,
+    ) -> bool {
+        let layout = (instances.layout_version(), instances.models_version());
+        let models_changed = self.layout.is_some_and(|(_, models)| models != layout.1);
+        match self.layout {
+            Some(kept) if kept == layout => {}
+            Some((kept, models_version))
+                if models_version == layout.1
+                    && let Some(edits) = instances.edits_since(kept) =>
+            {
+                self.follow_edits(edits, instances, models, table, moved);
+            }
+            _ => {
+                self.lay_out(instances, models, table);
+                moved.clear();
+            }
+        }
+        self.layout = Some(layout);
+        self.follow_moves(instances);
+        models_changed
+    }
+
     /// Follows the instances that moved.
     fn follow_moves(&mut self, instances: &ForestInstances) {
         for &i in instances.moved() {
@@ -385,23 +414,7 @@ fn move_rings(
     let cache = &mut *cache;
     let table = &mut *table;
     let moved = &mut *moved;
-    let layout = (instances.layout_version(), instances.models_version());
-    let models_changed = cache.layout.is_some_and(|(_, models)| models != layout.1);
-    match cache.layout {
-        Some(kept) if kept == layout => {}
-        Some((kept, models_version))
-            if models_version == layout.1
-                && let Some(edits) = instances.edits_since(kept) =>
-        {
-            cache.follow_edits(edits, &instances, &models, table, moved);
-        }
-        _ => {
-            cache.lay_out(&instances, &models, table);
-            moved.clear();
-        }
-    }
-    cache.layout = Some(layout);
-    cache.follow_moves(&instances);
+    let models_changed = cache.follow_layout(&instances, &models, table, moved);
     // Last frame's visibility, when it is indexed like this frame's instances.
     let visibility = if culling.layout_version() == Some(instances.layout_version()) {
         &culling.result.visibility[..]
@@ -414,26 +427,7 @@ fn move_rings(
     if refresh {
         cache.forget_rigs(table, moved);
     }
-    // Refilled in place: the displacement lists keep their allocations frame to frame.
-    cache.springs.resize_with(settings.sets.len(), || None);
-    for (i, (slot, handle)) in cache.springs.iter_mut().zip(&settings.sets).enumerate() {
-        let running = state.sets.get(i).and_then(Option::as_ref);
-        let (Some((_, springs, _)), Some(set)) = (running, sets.get(handle)) else {
-            *slot = None;
-            continue;
-        };
-        let now = slot.get_or_insert_default();
-        now.set = handle.id();
-        now.displacements.clear();
-        now.displacements
-            .extend(springs.iter().map(|s| s.displacement));
-        now.largest = now
-            .displacements
-            .iter()
-            .map(|d| d.length())
-            .fold(0.0, f32::max);
-        now.pixel_threshold = set.pixel_threshold;
-    }
+    refill_springs(&mut cache.springs, &settings, &state, &sets);
     let frame = cache.frame;
     cache.frame = cache.frame.wrapping_add(1);
     let view = views.iter().next();
@@ -501,33 +495,24 @@ fn move_rings(
                 level,
             ) as usize;
             let block = &mut cache.shared_blocks[b];
-            // A representative is computed at the rate of its fastest-moving borrower,
-            // staggered by block as instances are (on a grid of frames, so the same frames
-            // show the same wind in every run), and anew when it comes back into use.
-            let kept_up = block
-                .used
-                .is_some_and(|used| used == frame || used.wrapping_add(1) == frame);
-            let due = block.updated != Some(frame)
-                && (!kept_up || frame.wrapping_add(b as u32).is_multiple_of(interval));
-            block.used = Some(frame);
-            if due {
-                ring_offsets(
-                    rig,
-                    displacements,
-                    block.rotation,
-                    block.scale,
-                    0.0,
-                    &mut cache.scratch,
-                );
-                if cache.scratch.len() != block.len as usize {
-                    come_to_rest(instance, table, moved, i);
-                    continue;
-                }
-                table.write_block(block.start, &cache.scratch);
-                moved_bounds(rig, &cache.scratch, moved.shared_mut(b));
-                block.updated = Some(frame);
-                counts.shared_updated += 1;
-            }
+            let at = BlockUse {
+                index: b,
+                frame,
+                interval,
+            };
+            let Some(computed) = keep_up(
+                block,
+                at,
+                rig,
+                displacements,
+                &mut cache.scratch,
+                table,
+                moved,
+            ) else {
+                come_to_rest(instance, table, moved, i);
+                continue;
+            };
+            counts.shared_updated += u32::from(computed);
             table.share(i, block.start, block.len);
             moved.share(i, b);
             instance.moving = true;
@@ -596,6 +581,87 @@ fn resolve_rig<'a>(
         };
     }
     rigs.get(instance.rig as usize)
+}
+
+/// Refills each motion index's springs as the stage sees them this frame, in place (the
+/// displacement lists keep their allocations frame to frame).
+fn refill_springs(
+    slots: &mut Vec<Option<SetThisFrame>>,
+    settings: &WindSettings,
+    state: &WindState,
+    sets: &Assets<SpringSet>,
+) {
+    slots.resize_with(settings.sets.len(), || None);
+    for (i, (slot, handle)) in slots.iter_mut().zip(&settings.sets).enumerate() {
+        let running = state.sets.get(i).and_then(Option::as_ref);
+        let (Some((_, springs, _)), Some(set)) = (running, sets.get(handle)) else {
+            *slot = None;
+            continue;
+        };
+        let now = slot.get_or_insert_default();
+        now.set = handle.id();
+        now.displacements.clear();
+        now.displacements
+            .extend(springs.iter().map(|s| s.displacement));
+        now.largest = now
+            .displacements
+            .iter()
+            .map(|d| d.length())
+            .fold(0.0, f32::max);
+        now.pixel_threshold = set.pixel_threshold;
+    }
+}
+
+/// Which shared block a borrower uses, on which frame, at which update interval.
+#[derive(Clone, Copy)]
+struct BlockUse {
+    index: usize,
+    frame: u32,
+    interval: u32,
+}
+
+/// Brings `block` up to date for a borrower: a representative is computed at the rate of
+/// its fastest-moving borrower, staggered by block as instances are (on a grid of frames,
+/// so the same frames show the same wind in every run), and anew when it comes back into
+/// use. Whether it was computed; `None` when the rig's offsets do not fit the block.
+fn keep_up(
+    block: &mut SharedBlock,
+    at: BlockUse,
+    rig: &WindRig,
+    displacements: &[Vec3],
+    scratch: &mut Vec<Vec3A>,
+    table: &mut RingOffsetTable,
+    moved: &mut MovedShapes,
+) -> Option<bool> {
+    let BlockUse {
+        index,
+        frame,
+        interval,
+    } = at;
+    let kept_up = block
+        .used
+        .is_some_and(|used| used == frame || used.wrapping_add(1) == frame);
+    let due = block.updated != Some(frame)
+        && (!kept_up || frame.wrapping_add(index as u32).is_multiple_of(interval));
+    block.used = Some(frame);
+    if !due {
+        return Some(false);
+    }
+    ring_offsets(
+        rig,
+        displacements,
+        block.rotation,
+        block.scale,
+        0.0,
+        scratch,
+    );
+    if scratch.len() != block.len as usize {
+        return None;
+    }
+    table.write_block(block.start, scratch);
+    moved_bounds(rig, scratch, moved.shared_mut(index));
+    block.updated = Some(frame);
+    Some(true)
 }
 
 /// The block of `instance`'s representative at `level` (under its resolved rig), made on
