@@ -94,11 +94,12 @@ fn forest_app(trees: u32, view: View, strategy: StrategyKind, far_refresh: u32) 
     view.look(&mut app, size, 0);
     common::until_visible(&mut app);
     if strategy == StrategyKind::Hierarchical {
-        // The group impostors are built once the strategy is chosen; then the cut refines
-        // one box level a frame.
-        for _ in 0..600 {
+        // The group impostors of the boxes the cut reaches are built a few a frame; then
+        // the cut refines one box level a frame.
+        for _ in 0..2000 {
             app.update();
-            if !app.world().resource::<GroupImpostors>().is_empty() {
+            let groups = app.world().resource::<GroupImpostors>();
+            if !groups.is_empty() && !groups.building() {
                 break;
             }
         }

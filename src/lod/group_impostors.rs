@@ -1,14 +1,22 @@
 //! The group impostors of the hierarchical strategy: one [`TreeModel`] per box of the
 //! culling hierarchy that holds enough trees, spawned as a tree entity the LOD stages
 //! write a draw list into (empty while its trees are drawn on their own).
+//!
+//! They are built lazily, for the boxes last frame's cut reached (and the children of
+//! those it drew as group impostors, where it refines next), coarsest first within
+//! [`GroupImpostorSettings::build_ms_per_frame`], and released once the cut has not
+//! reached them for [`GroupImpostorSettings::idle_secs`]: memory follows the boxes in
+//! view, not the forest, and no frame stops to build them all. A box without one yet is
+//! opened by the cut to its trees, which are drawn on their own meanwhile.
 
 use std::time::Instant;
 
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use super::{FrameBudget, GroupImpostorSettings, StrategyKind};
-use crate::culling::ForestCulling;
+use super::{FrameBudget, GroupImpostorSettings, HierarchicalCut, StrategyKind};
+use crate::budget::NodeSelection;
+use crate::culling::{BoxHierarchy, ForestCulling};
 use crate::draw::{ModelSlot, TreeDrawList, TreeShading};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::tree::{GroupImpostorMember, TreeModel, group_impostor_model};
@@ -33,6 +41,10 @@ pub(crate) struct GroupImpostor {
     pub(crate) slot: ModelSlot,
     /// Its model's vertices (counted against [`GroupImpostorSettings::max_vertices`]).
     vertices: usize,
+    /// When (`Time<Real>` seconds) the cut last reached its box.
+    wanted_at: f32,
+    /// Its box's trees changed since it was built: rebuilt when next wanted.
+    stale: bool,
 }
 
 /// After trees are planted or felled, the group impostors of the boxes that hold them are
@@ -40,21 +52,43 @@ pub(crate) struct GroupImpostor {
 /// they were built with.
 pub(crate) const GROUP_REBUILD_SECS: f32 = 1.0;
 
+/// What group impostors are built for: the hierarchy's version and depth, and the
+/// settings that shape a group's model.
+type BuiltFor = (u64, u32, (u32, u32, u32, u32));
+
 /// The group impostors of the culling hierarchy's boxes, built by the LOD plugin while
 /// the strategy is [`StrategyKind::Hierarchical`].
 #[derive(Resource, Default)]
 pub struct GroupImpostors {
     /// Per box of the hierarchy, its impostor.
     pub(crate) nodes: Vec<Option<GroupImpostor>>,
-    /// `(hierarchy version, depth, settings)` they were built for.
-    built: Option<(u64, u32, GroupImpostorSettings)>,
+    /// Per box, whether it cannot have one (too few trees, no bounds, or its model could
+    /// not be built) until its trees change.
+    unbuildable: Vec<bool>,
+    /// What they were built for.
+    built: Option<BuiltFor>,
     /// The hierarchy's edits they follow, and when (`Time<Real>` seconds) they were last
     /// brought up to them.
     edits_seen: u64,
-    built_at: f32,
+    edits_checked_at: f32,
+    /// Vertices of all the built groups' models.
+    vertices: usize,
+    /// Boxes wanted this frame (scratch).
+    wanted: Vec<u32>,
+    /// Group models built and not yet spawned, and when the last were.
+    pending: Vec<Built>,
+    published_at: Option<f32>,
+    /// Boxes whose impostors make room for this frame's builds (scratch).
+    releasing: Vec<usize>,
+    /// Last frame's building time, milliseconds.
     build_ms: f32,
-    failed: u32,
+    /// Models built so far.
     builds: u64,
+    /// Whether the vertex budget stopped a build since the hierarchy was built (logged once).
+    full_logged: bool,
+    /// Whether boxes the cut wants are still without their group impostor, or what it
+    /// wants is not known yet.
+    building: bool,
 }
 
 impl GroupImpostors {
@@ -68,21 +102,52 @@ impl GroupImpostors {
         self.len() == 0
     }
 
+    /// Vertices of the group impostors' models together.
+    pub fn vertices(&self) -> usize {
+        self.vertices
+    }
+
+    /// Group models built so far (rebuilds included).
+    pub fn builds(&self) -> u64 {
+        self.builds
+    }
+
+    /// Whether boxes the cut reached are still waiting for their group impostor (built a
+    /// few a frame, [`GroupImpostorSettings::build_ms_per_frame`]; their trees are drawn
+    /// on their own meanwhile).
+    pub fn building(&self) -> bool {
+        self.building
+    }
+
     /// Whether box `node` of the culling's hierarchy has a group impostor built for the
     /// hierarchy it holds now (impostors of an older hierarchy are not used).
     pub(crate) fn has_impostor(&self, culling: Option<&ForestCulling>, node: usize) -> bool {
         let current = culling.is_some_and(|c| {
-            let depth = c.hierarchy.as_ref().map_or(0, crate::culling::BoxHierarchy::depth);
+            let depth = c.hierarchy.as_ref().map_or(0, BoxHierarchy::depth);
             matches!((self.built, c.hierarchy_version()), (Some((v, d, _)), Some(now)) if v == now && d == depth)
         });
         current && self.nodes.get(node).is_some_and(Option::is_some)
     }
 }
 
-/// Builds the group impostors once the hierarchical strategy is chosen, the culling
-/// hierarchy is built for the current layout and every tree model has loaded; after
-/// trees were planted or felled, rebuilds the boxes that hold them (at most every
-/// [`GROUP_REBUILD_SECS`]).
+/// Built group models are handed to the renderer together, at most this often (seconds
+/// of real time) while more are being built: every change of the set of tree models
+/// re-packs the forest's geometry.
+const GROUP_PUBLISH_SECS: f32 = 0.5;
+
+/// A group model built and not yet spawned.
+struct Built {
+    node: usize,
+    origin: Vec3,
+    model: TreeModel,
+    first_tree: u32,
+}
+
+/// Builds, once the hierarchical strategy is chosen, the culling hierarchy is built for
+/// the current layout and every tree model has loaded, the group impostors of the boxes
+/// last frame's cut wanted (see the module's documentation); after trees were planted or
+/// felled, rebuilds the ones of the boxes that hold them (at most every
+/// [`GROUP_REBUILD_SECS`]). Releases them all when another strategy is chosen.
 #[expect(
     clippy::too_many_arguments,
     reason = "a system names every resource it reads"
@@ -96,11 +161,19 @@ pub(super) fn build_group_impostors(
     mut models: ResMut<Assets<TreeModel>>,
     shadings: Query<&TreeShading>,
     mut groups: ResMut<GroupImpostors>,
+    cut: Res<HierarchicalCut>,
     time: Res<Time<Real>>,
 ) {
+    let groups = &mut *groups;
     if budget.strategy != StrategyKind::Hierarchical {
+        if groups.built.is_some() {
+            groups.release_all(&mut commands, &mut models);
+        }
         return;
     }
+    // Until the cut has reached the boxes of the current hierarchy, what it wants is not
+    // known yet.
+    groups.building = true;
     let Some(culling) = culling else {
         return;
     };
@@ -115,113 +188,317 @@ pub(super) fn build_group_impostors(
     if culling.layout_version() != Some(table.layout_version()) || waiting {
         return;
     }
-    let key = (version, hierarchy.depth(), *settings);
     let now = time.elapsed_secs();
-    let every_box = groups.built != Some(key);
-    if !every_box
-        && (groups.edits_seen == hierarchy.edits() || now - groups.built_at < GROUP_REBUILD_SECS)
+    let key = (version, hierarchy.depth(), settings.shape());
+    if groups.built != Some(key) {
+        groups.release_all(&mut commands, &mut models);
+        groups.nodes.resize(hierarchy.node_count(), None);
+        groups.unbuildable.resize(hierarchy.node_count(), false);
+        groups.built = Some(key);
+        groups.edits_seen = hierarchy.edits();
+        groups.edits_checked_at = now;
+    } else if groups.edits_seen != hierarchy.edits()
+        && now - groups.edits_checked_at >= GROUP_REBUILD_SECS
     {
-        return;
+        groups.follow_edits(hierarchy, now);
     }
+
     let start = Instant::now();
-    let boxes: Vec<usize> = if every_box {
-        (0..hierarchy.node_count()).collect()
+    let mut wanted = core::mem::take(&mut groups.wanted);
+    let cut_known = cut.layout == Some(version);
+    if cut_known {
+        wanted_boxes(&cut, hierarchy, &mut wanted);
     } else {
-        (0..hierarchy.node_count())
-            .filter(|&node| hierarchy.node_edit(node) > groups.edits_seen)
-            .collect()
-    };
-    let stale: Vec<GroupImpostor> = if every_box {
-        groups.nodes.drain(..).flatten().collect()
-    } else {
-        boxes
-            .iter()
-            .filter_map(|&node| groups.nodes.get_mut(node).and_then(Option::take))
-            .collect()
-    };
-    for old in stale {
-        commands.entity(old.entity).try_despawn();
-        models.remove(&old.model);
+        wanted.clear();
     }
-    groups.nodes.resize(hierarchy.node_count(), None);
-    let mut far_first: HashMap<AssetId<TreeModel>, Vec<u32>> = HashMap::default();
-    for id in &table.model_ids {
-        if let Some(model) = models.get(*id) {
-            far_first.insert(*id, model.far_first_leaves());
+    for &node in &wanted {
+        if let Some(g) = groups.nodes[node as usize].as_mut() {
+            g.wanted_at = now;
         }
     }
-    let options = settings.model_options();
-    let mut built = Vec::with_capacity(boxes.len());
-    let mut failed = 0;
-    let mut vertices: usize = groups.nodes.iter().flatten().map(|g| g.vertices).sum();
-    let mut full = false;
-    // Boxes are numbered level by level from the root: coarsest first.
-    for &node in &boxes {
-        let trees = hierarchy.node_instances(node);
-        let bounds = hierarchy.node_bounds(node);
-        if full || trees.len() < settings.min_trees.max(1) as usize || bounds.is_empty() {
-            continue;
+    groups.release_idle(
+        &mut commands,
+        &mut models,
+        now - settings.idle_secs.max(0.0),
+    );
+    let (built, exhausted) = groups.build_wanted(
+        &wanted,
+        GroupInputs {
+            hierarchy,
+            table: &table,
+            models: &models,
+            settings: &settings,
+        },
+        start,
+    );
+    groups.wanted = wanted;
+    for node in core::mem::take(&mut groups.releasing) {
+        groups.release(node, &mut commands, &mut models);
+    }
+    let due = groups
+        .published_at
+        .is_none_or(|at| now - at >= GROUP_PUBLISH_SECS);
+    if !groups.pending.is_empty() && (exhausted || due) {
+        groups.published_at = Some(now);
+        for b in core::mem::take(&mut groups.pending) {
+            // Shaded like its first tree.
+            let shading = table
+                .entities
+                .get(b.first_tree as usize)
+                .and_then(|&e| shadings.get(e).ok())
+                .copied()
+                .unwrap_or_else(|| TreeShading::of_model(&b.model));
+            if let Some(old) = groups.nodes[b.node].take() {
+                groups.vertices -= old.vertices;
+                commands.entity(old.entity).try_despawn();
+                models.remove(&old.model);
+            }
+            let impostor = spawn_impostor(
+                &mut commands,
+                &mut models,
+                b.node,
+                b.origin,
+                b.model,
+                shading,
+            );
+            groups.vertices += impostor.vertices;
+            groups.nodes[b.node] = Some(GroupImpostor {
+                wanted_at: now,
+                ..impostor
+            });
         }
-        let origin = Vec3::new(bounds.center().x, bounds.min.y, bounds.center().z);
-        let members = members_around(&table, &models, &far_first, trees, origin);
-        match group_impostor_model(&members, &options) {
-            Ok(model) => {
-                vertices += model.trunk_positions.len() + model.leaf_positions.len();
-                if vertices > settings.max_vertices as usize {
-                    full = true;
+    }
+    groups.building = !cut_known || !exhausted || !groups.pending.is_empty();
+    groups.build_ms = start.elapsed().as_secs_f32() * 1000.0;
+    if built > 0 {
+        debug!(
+            "built {built} group impostors in {:.1} ms ({} in all, {} vertices)",
+            groups.build_ms,
+            groups.len(),
+            groups.vertices
+        );
+    }
+}
+
+/// What building a box's group model reads.
+#[derive(Clone, Copy)]
+struct GroupInputs<'a> {
+    hierarchy: &'a BoxHierarchy,
+    table: &'a ForestInstances,
+    models: &'a Assets<TreeModel>,
+    settings: &'a GroupImpostorSettings,
+}
+
+impl GroupImpostors {
+    /// Despawns every group impostor and forgets what they were built for.
+    fn release_all(&mut self, commands: &mut Commands, models: &mut Assets<TreeModel>) {
+        for old in self.nodes.drain(..).flatten() {
+            commands.entity(old.entity).try_despawn();
+            models.remove(&old.model);
+        }
+        self.unbuildable.clear();
+        self.pending.clear();
+        self.vertices = 0;
+        self.built = None;
+        self.building = false;
+        self.full_logged = false;
+    }
+
+    /// Releases box `node`'s group impostor, if it has one.
+    fn release(&mut self, node: usize, commands: &mut Commands, models: &mut Assets<TreeModel>) {
+        if let Some(old) = self.nodes.get_mut(node).and_then(Option::take) {
+            self.vertices -= old.vertices;
+            commands.entity(old.entity).try_despawn();
+            models.remove(&old.model);
+        }
+    }
+
+    /// Releases the group impostors last wanted before `before` (`Time<Real>` seconds).
+    fn release_idle(
+        &mut self,
+        commands: &mut Commands,
+        models: &mut Assets<TreeModel>,
+        before: f32,
+    ) {
+        for node in 0..self.nodes.len() {
+            if self.nodes[node]
+                .as_ref()
+                .is_some_and(|g| g.wanted_at < before)
+            {
+                self.release(node, commands, models);
+            }
+        }
+    }
+
+    /// Marks the group impostors of the boxes whose trees changed since last time stale
+    /// (rebuilt when next wanted, shown until then), and lets those boxes be tried again.
+    fn follow_edits(&mut self, hierarchy: &BoxHierarchy, now: f32) {
+        for node in 0..self.nodes.len() {
+            if hierarchy.node_edit(node) > self.edits_seen {
+                self.unbuildable[node] = false;
+                if let Some(g) = self.nodes[node].as_mut() {
+                    g.stale = true;
+                }
+            }
+        }
+        let seen = self.edits_seen;
+        self.pending.retain(|b| hierarchy.node_edit(b.node) <= seen);
+        self.edits_seen = hierarchy.edits();
+        self.edits_checked_at = now;
+    }
+
+    /// Builds the group models of the `wanted` boxes (sorted, coarsest first) that have
+    /// none or a stale one, into `pending`, until the frame's building time is spent (at
+    /// least one a frame) or the vertex budget is reached (releasing the impostors wanted
+    /// longest ago, not this frame, to make room). Returns how many it built and whether
+    /// every wanted box is now built or cannot be.
+    fn build_wanted(
+        &mut self,
+        wanted: &[u32],
+        inputs: GroupInputs,
+        start: Instant,
+    ) -> (usize, bool) {
+        let GroupInputs {
+            hierarchy,
+            table,
+            models,
+            settings,
+        } = inputs;
+        let spend = settings.build_ms_per_frame.max(0.0) / 1000.0;
+        let mut far_first: HashMap<AssetId<TreeModel>, Vec<u32>> = HashMap::default();
+        let mut built = 0;
+        let mut pending_vertices: usize =
+            self.pending.iter().map(|b| model_vertices(&b.model)).sum();
+        let mut freed = 0;
+        for &node in wanted {
+            let node = node as usize;
+            let needs = self.nodes[node].as_ref().is_none_or(|g| g.stale)
+                && !self.unbuildable[node]
+                && !self.pending.iter().any(|b| b.node == node);
+            if !needs {
+                continue;
+            }
+            if built > 0 && start.elapsed().as_secs_f32() >= spend {
+                return (built, false);
+            }
+            let trees = hierarchy.node_instances(node);
+            let bounds = hierarchy.node_bounds(node);
+            if trees.len() < settings.min_trees.max(1) as usize || bounds.is_empty() {
+                self.unbuildable[node] = true;
+                continue;
+            }
+            if far_first.is_empty() {
+                for id in &table.model_ids {
+                    if let Some(model) = models.get(*id) {
+                        far_first.insert(*id, model.far_first_leaves());
+                    }
+                }
+            }
+            let origin = Vec3::new(bounds.center().x, bounds.min.y, bounds.center().z);
+            let members = members_around(table, models, &far_first, trees, origin);
+            let model = match group_impostor_model(&members, &settings.model_options()) {
+                Ok(model) => model,
+                Err(error) => {
+                    warn!(
+                        "group impostor of culling box {node} ({} trees): {error}",
+                        trees.len()
+                    );
+                    self.unbuildable[node] = true;
+                    continue;
+                }
+            };
+            built += 1;
+            self.builds += 1;
+            let replaced = self.nodes[node].as_ref().map_or(0, |g| g.vertices);
+            let needed = (self.vertices + pending_vertices + model_vertices(&model))
+                .saturating_sub(replaced + freed);
+            let over = needed.saturating_sub(settings.max_vertices as usize);
+            let made = if over > 0 {
+                self.make_room(over, wanted)
+            } else {
+                Some(0)
+            };
+            let Some(made) = made else {
+                if !self.full_logged {
+                    self.full_logged = true;
                     info!(
-                        "group impostors stop at culling box {node} (level {}): GroupImpostorSettings::max_vertices ({}) reached",
+                        "group impostors stop at culling box {node} (level {}): GroupImpostorSettings::max_vertices ({}) reached by the boxes in view",
                         hierarchy.level_of(node),
                         settings.max_vertices
                     );
-                } else {
-                    built.push((node, origin, model, trees[0]));
                 }
+                return (built, true);
+            };
+            freed += made;
+            pending_vertices += model_vertices(&model);
+            self.pending.push(Built {
+                node,
+                origin,
+                model,
+                first_tree: trees[0],
+            });
+        }
+        (built, true)
+    }
+
+    /// Picks for release (into `releasing`), wanted longest ago first, impostors not
+    /// `wanted` this frame until `over` vertices are freed; how many it frees, or `None`
+    /// (and picks none) when those impostors do not free enough.
+    fn make_room(&mut self, over: usize, wanted: &[u32]) -> Option<usize> {
+        let mut idle: Vec<(f32, usize, usize)> = self
+            .nodes
+            .iter()
+            .enumerate()
+            .filter_map(|(node, g)| g.as_ref().map(|g| (g.wanted_at, node, g.vertices)))
+            .filter(|(_, node, _)| {
+                wanted.binary_search(&(*node as u32)).is_err() && !self.releasing.contains(node)
+            })
+            .collect();
+        if idle.iter().map(|i| i.2).sum::<usize>() < over {
+            return None;
+        }
+        idle.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut freed = 0;
+        for (_, node, vertices) in idle {
+            if freed >= over {
+                break;
             }
-            Err(error) => {
-                // Warned once, when every box is built: a box rebuilt after planting
-                // may fail again every time.
-                let trees = trees.len();
-                if every_box {
-                    warn!("group impostor of culling box {node} ({trees} trees): {error}");
-                } else {
-                    debug!("group impostor of culling box {node} ({trees} trees): {error}");
-                }
-                failed += 1;
-            }
+            self.releasing.push(node);
+            freed += vertices;
+        }
+        Some(freed)
+    }
+}
+
+fn model_vertices(model: &TreeModel) -> usize {
+    model.trunk_positions.len() + model.leaf_positions.len()
+}
+
+/// Into `wanted` (sorted, without repeats): the boxes of the culling hierarchy last
+/// frame's cut reached, and the children in view of those it drew as group impostors
+/// (where it refines next).
+fn wanted_boxes(cut: &HierarchicalCut, boxes: &BoxHierarchy, wanted: &mut Vec<u32>) {
+    wanted.clear();
+    for (node, selection) in cut.boxes.iter().zip(&cut.selection) {
+        let Some(node) = *node else {
+            continue;
+        };
+        wanted.push(node);
+        if matches!(selection, NodeSelection::Impostor(_))
+            && let Some(children) = boxes.children(node as usize)
+        {
+            wanted.extend(
+                children
+                    .filter(|&c| {
+                        boxes.node_visibility(c) != crate::culling::NodeVisibility::Outside
+                    })
+                    .map(|c| c as u32),
+            );
         }
     }
-    let rebuilt = built.len();
-    for (node, origin, model, first_tree) in built {
-        // Shaded like its first tree.
-        let shading = table
-            .entities
-            .get(first_tree as usize)
-            .and_then(|&e| shadings.get(e).ok())
-            .copied()
-            .unwrap_or_else(|| TreeShading::of_model(&model));
-        let impostor = spawn_impostor(&mut commands, &mut models, node, origin, model, shading);
-        groups.nodes[node] = Some(impostor);
-    }
-    groups.built = Some(key);
-    groups.edits_seen = hierarchy.edits();
-    groups.built_at = now;
-    groups.builds += 1;
-    groups.build_ms = start.elapsed().as_secs_f32() * 1000.0;
-    groups.failed = failed;
-    if every_box {
-        info!(
-            "built {} group impostors in {:.0} ms",
-            groups.len(),
-            groups.build_ms
-        );
-    } else {
-        debug!(
-            "rebuilt {rebuilt} group impostors of {} boxes whose trees changed in {:.0} ms",
-            boxes.len(),
-            groups.build_ms
-        );
-    }
+    wanted.retain(|&node| (node as usize) < boxes.node_count());
+    wanted.sort_unstable();
+    wanted.dedup();
 }
 
 /// The trees `trees` of the table as members of a group placed at `origin` (their
@@ -280,5 +557,7 @@ fn spawn_impostor(
         origin,
         slot,
         vertices,
+        wanted_at: 0.0,
+        stale: false,
     }
 }

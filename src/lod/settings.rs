@@ -217,10 +217,15 @@ pub struct BenefitReport {
 
 /// The group impostors of the [`StrategyKind::Hierarchical`] strategy: one per box of the
 /// culling hierarchy holding enough trees, built from its trees
-/// (`group_impostor_model`) the first time the strategy is chosen and
-/// whenever the forest's layout changes (not when trees only move or sway: a group keeps
-/// its trees' places at build time, and does not sway). Changing it rebuilds them.
-#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Reflect)]
+/// (`group_impostor_model`) when the cut first reaches the box, and rebuilt when its trees
+/// are planted or felled (not when they only move or sway: a group keeps its trees'
+/// places at build time, and does not sway). Built lazily: only boxes last frame's cut
+/// reached (and the children of those it drew as groups) get one, coarsest first, a few
+/// a frame; those the cut has not reached for [`idle_secs`](Self::idle_secs) are
+/// released. Until a box has one, the cut draws its trees on their own. Changing
+/// `min_trees`, `leaves`, `trunks` or `max_vertices` releases them all (they are rebuilt
+/// as wanted).
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Reflect)]
 #[reflect(Resource)]
 #[serde(default)]
 pub struct GroupImpostorSettings {
@@ -231,12 +236,19 @@ pub struct GroupImpostorSettings {
     pub leaves: u32,
     /// Trees whose stem and leaves a group keeps, at most. Default: `32`.
     pub trunks: u32,
-    /// Vertices all the groups may have together: boxes are given groups coarsest first
-    /// (the root, then each level down) until the next would pass it, so that the packed
-    /// geometry stays within what a GPU binds at once (wgpu's default limit is 128 MiB,
-    /// 4 Mi vertices of the pass's 32 bytes, and the trees need their share). Default:
+    /// Vertices all the groups may have together: when the boxes in view want more, the
+    /// coarsest are built first and the finer go without, so that the packed geometry
+    /// stays within what a GPU binds at once (wgpu's default limit is 128 MiB, 4 Mi
+    /// vertices of the pass's 32 bytes, and the trees need their share). Default:
     /// `2_000_000` (~1 600 groups at the other defaults).
     pub max_vertices: u32,
+    /// CPU time a frame may spend building group impostors, milliseconds (at least one is
+    /// built a frame while any is wanted; at the defaults one takes ~1 ms on a 2 GHz
+    /// core). Default: `2.0`.
+    pub build_ms_per_frame: f32,
+    /// A group impostor the cut has not reached for this long (seconds of real time) is
+    /// released, its memory with it. Default: `10.0`.
+    pub idle_secs: f32,
 }
 
 impl Default for GroupImpostorSettings {
@@ -246,6 +258,8 @@ impl Default for GroupImpostorSettings {
             leaves: 256,
             trunks: 32,
             max_vertices: 2_000_000,
+            build_ms_per_frame: 2.0,
+            idle_secs: 10.0,
         }
     }
 }
@@ -257,6 +271,12 @@ impl GroupImpostorSettings {
             leaves: self.leaves,
             trunks: self.trunks,
         }
+    }
+
+    /// The settings whose change releases every group impostor: what shapes a group and
+    /// which boxes may have one.
+    pub(crate) fn shape(&self) -> (u32, u32, u32, u32) {
+        (self.min_trees, self.leaves, self.trunks, self.max_vertices)
     }
 }
 

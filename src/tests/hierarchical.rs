@@ -259,3 +259,96 @@ fn group_geometry_stays_within_its_vertex_budget_coarsest_first() {
         assert!(!visible || own || by_group, "instance {i} unrepresented");
     }
 }
+
+/// The boxes last frame's cut reached, with how it drew them.
+fn reached_boxes(app: &App) -> Vec<(u32, NodeSelection)> {
+    let cut = app.world().resource::<HierarchicalCut>();
+    cut.boxes
+        .iter()
+        .zip(&cut.selection)
+        .filter_map(|(node, selection)| node.map(|n| (n, *selection)))
+        .collect()
+}
+
+/// Whether box `node` was wanted by last frame's cut: reached by it, or a child of a box it
+/// drew as its group impostor (where it refines next; boxes are numbered level by level,
+/// four children each).
+fn wanted_by_the_cut(reached: &[(u32, NodeSelection)], node: u32) -> bool {
+    let selection = |n: u32| reached.iter().find(|(b, _)| *b == n).map(|(_, s)| *s);
+    selection(node).is_some()
+        || (node > 0 && matches!(selection((node - 1) / 4), Some(NodeSelection::Impostor(_))))
+}
+
+#[test]
+fn group_impostors_are_built_for_the_boxes_in_view_and_released_when_left() {
+    let mut app = common::default_forest_view(EYE, LOOK_AT, |app| {
+        app.insert_resource(GroupImpostorSettings {
+            // One build a frame, and a box the cut leaves is released at once.
+            build_ms_per_frame: 0.0,
+            idle_secs: 0.0,
+            ..Default::default()
+        });
+    });
+    let mut builds = 0;
+    let mut frames = 0;
+    loop {
+        frame(&mut app, hierarchical(4.0));
+        frames += 1;
+        let groups = app.world().resource::<GroupImpostors>();
+        assert!(
+            groups.builds() <= builds + 1,
+            "{} built in one frame",
+            groups.builds() - builds
+        );
+        builds = groups.builds();
+        // Until it has them, the cut draws every tree of a box on its own.
+        for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
+            assert!(!visible || own || by_group, "instance {i} unrepresented");
+        }
+        if !app.world().resource::<GroupImpostors>().building() {
+            break;
+        }
+        assert!(frames < 400, "still building after {frames} frames");
+    }
+    let in_view = app.world().resource::<GroupImpostors>().len();
+    let vertices = app.world().resource::<GroupImpostors>().vertices();
+    assert!(in_view >= 2, "{in_view} group impostors");
+    for _ in 0..4 {
+        frame(&mut app, hierarchical(4.0));
+    }
+    let impostor_boxes = |app: &mut App| {
+        let world = app.world_mut();
+        let mut query = world.query::<&GroupImpostorOf>();
+        query.iter(world).map(|g| g.node).collect::<Vec<_>>()
+    };
+    let reached = reached_boxes(&app);
+    for node in impostor_boxes(&mut app) {
+        assert!(
+            wanted_by_the_cut(&reached, node),
+            "box {node} kept, not in view"
+        );
+    }
+    // Turned away from the forest: the boxes behind are let go, their memory with them.
+    common::look_from(
+        &mut app,
+        EYE,
+        EYE + (EYE - LOOK_AT) * Vec3::new(1.0, -1.0, 1.0),
+    );
+    for _ in 0..4 {
+        frame(&mut app, hierarchical(4.0));
+    }
+    let groups = app.world().resource::<GroupImpostors>();
+    assert!(
+        groups.len() < in_view && groups.vertices() < vertices,
+        "{} of {in_view} group impostors, {} of {vertices} vertices kept after turning away",
+        groups.len(),
+        groups.vertices()
+    );
+    let reached = reached_boxes(&app);
+    for node in impostor_boxes(&mut app) {
+        assert!(
+            wanted_by_the_cut(&reached, node),
+            "box {node} kept behind the camera"
+        );
+    }
+}

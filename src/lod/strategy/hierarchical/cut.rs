@@ -81,6 +81,9 @@ pub(crate) struct HierarchicalCut {
     /// its imaginary empty item, and the coarsest cut (every top-level box's cheapest
     /// group impostor, or its children's) was drawn instead, overrunning.
     pub coarsest_forced: bool,
+    /// The culling hierarchy's version `boxes` index
+    /// ([`ForestCulling::hierarchy_version`](crate::culling::ForestCulling::hierarchy_version)).
+    pub layout: Option<u64>,
 }
 
 /// The hierarchical strategy's state, kept between frames.
@@ -253,6 +256,7 @@ impl HierarchicalFrame {
         }));
         cut.rendering = inputs.rendering;
         cut.coarsest_forced = scene_dropped;
+        cut.layout = inputs.layout;
         core::mem::swap(&mut cut.hierarchy, &mut self.hierarchy);
         core::mem::swap(&mut cut.seed, &mut self.seed);
         CutOutcome {
