@@ -19,6 +19,12 @@ use crate::tree::TreeModel;
 #[cfg(any(test, feature = "render"))]
 pub(crate) mod packing;
 
+/// The widest line and the largest point the pass draws, pixels: a wider width or a
+/// larger size in a draw list is drawn at this one. (The level of detail picks lines and
+/// leaf points up to 20 pixels, where they stop paying for themselves against
+/// triangles; a crown disc may be larger.)
+pub(crate) const MAX_PRIMITIVE_PIXELS: u32 = 64;
+
 /// A run of trunk segments drawn as screen-space lines of one width.
 #[derive(Clone, Debug, PartialEq, Eq, Reflect)]
 pub struct LineRun {
@@ -52,7 +58,10 @@ pub struct PointRun {
 /// leaf), where the `k` far leaves of every group at once are one range. A tree chosen
 /// as a whole draws its leaves with one or two ranges of the second kind; a range must
 /// not mix the two (one that straddles `n` draws the leaves on both sides, each once
-/// per order).
+/// per order). Leaf `2n` ([`TreeModel::crown_leaf`]), drawn as a point, is the
+/// [crown](TreeModel::crown) disc: a point at the crown's centre standing for all the
+/// leaves (a point of size `s` covers `s²` pixels, so the size whose square is the
+/// crown's projected area covers as much as the leaves).
 ///
 /// A [`TreeInstance`](crate::instance::TreeInstance) without this component is drawn at
 /// full detail if it has [`FixedDrawList`](crate::instance::FixedDrawList), and otherwise
@@ -254,8 +263,8 @@ pub(crate) struct ModelSlot {
     pub line_count: u32,
     /// First leaf point in [`GeometryAtlas::primitives`].
     pub points: u32,
-    /// Leaf indices: every leaf twice, in the model's order then in its far-first order
-    /// (see [`TreeDrawList`]).
+    /// Leaf indices: every leaf twice, in the model's order then in its far-first order,
+    /// then the crown disc if the model has one (see [`TreeDrawList`]).
     pub point_count: u32,
     /// Ring count (the length of its slice of a ring-offset table).
     pub rings: u32,
@@ -275,6 +284,10 @@ impl ModelSlot {
         let mut total = 0;
         for leaf in leaves {
             total += leaf.triangles.len() as u32;
+            prefix.push(total);
+        }
+        if model.crown.is_some() {
+            // The crown disc, a point only.
             prefix.push(total);
         }
         Self {

@@ -6,7 +6,7 @@ use core::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{ModelSlot, TreeDrawList, both_orders, clip};
+use super::{MAX_PRIMITIVE_PIXELS, ModelSlot, TreeDrawList, both_orders, clip};
 use crate::tree::{NO_RING, TreeModel};
 
 /// Triangles per triangle chunk.
@@ -137,6 +137,13 @@ impl GeometryAtlas {
                     ring_b: NO_RING,
                 }
             }));
+        self.primitives
+            .extend(model.crown.map(|crown| GpuPrimitive {
+                a: crown.center.to_array(),
+                ring_a: crown.ring,
+                b: crown.normal.to_array(),
+                ring_b: NO_RING,
+            }));
         ModelSlot {
             trunk_triangles,
             leaf_triangles,
@@ -233,11 +240,6 @@ pub(crate) struct ChunksMark {
     kinds: [usize; 4],
     pending: [usize; 4],
 }
-
-/// The widest line and the largest point the pass draws, pixels: a wider width or a
-/// larger size in a draw list is drawn at this one. (The level of detail picks up to
-/// 20 pixels, where primitives stop paying for themselves against triangles.)
-pub(crate) const MAX_PRIMITIVE_PIXELS: u32 = 64;
 
 /// [`GpuChunk::instance`] of a chunk whose slots are listed in [`FrameChunks::gathered`]
 /// from [`GpuChunk::first`] on.

@@ -19,7 +19,7 @@
 use core::ops::Range;
 
 pub(crate) use crate::cost::PrimitiveCosts;
-use crate::draw::{LineRun, PointRun, TreeDrawList};
+use crate::draw::{LineRun, MAX_PRIMITIVE_PIXELS, PointRun, TreeDrawList};
 use crate::tree::{PixelRange, Projection, TreeModel};
 
 /// Mean ratio of a segment's projected length to its length: trunks and branches are
@@ -1106,15 +1106,63 @@ pub(crate) fn leaves_at_depth_floor(
         _ if full <= 0.0 => full,
         // A far leaf of every group.
         LeafMethod::Tc => tree.triangle_leaf * tree.groups as f32,
-        // A far point of every group, all at the largest size for an average group.
+        // The crown disc, or a far point of every group (all at the largest size for an
+        // average group) where that is cheaper.
         LeafMethod::Tclod(sizes) => {
-            costs.points(largest_point(tree.area, tree.groups, sizes), tree.groups)
+            let groups = far_points_floor(&tree, costs, sizes);
+            crown_size(model, view, depth).map_or(groups, |size| groups.min(costs.points(size, 1)))
         }
         LeafMethod::Static(_) => {
             let mut scratch = TreeDrawList::default();
             leaves_at_depth(model, view, costs, method, depth, 0.0, &mut scratch).cost
         }
     }
+}
+
+/// The cost of TCLOD's far points for a tree chosen as a whole: one for every group, at
+/// the largest size for a group of average size.
+fn far_points_floor(tree: &TreeAtDepth, costs: &PrimitiveCosts, sizes: PixelRange) -> f32 {
+    costs.points(largest_point(tree.area, tree.groups, sizes), tree.groups)
+}
+
+/// The point size of `model`'s [crown](TreeModel::crown) disc at `depth`: the side of a
+/// square of the crown's projected area (a point of size `s` covers `s²` pixels, round or
+/// not). `None` when the model has no crown or the disc would be larger than the largest
+/// point drawn, and so would not cover it.
+fn crown_size(model: &TreeModel, view: &TreeView, depth: f32) -> Option<u32> {
+    let crown = model.crown.as_ref()?;
+    let side = crown.area.sqrt() * pixels_per_unit(view, depth);
+    (side.is_finite() && side < MAX_PRIMITIVE_PIXELS as f32 + 0.5)
+        .then(|| ((side + 0.5) as u32).max(1))
+}
+
+/// TCLOD's crown disc for a tree chosen as a whole, written, when `time` does not pay for
+/// a far point of every group and the disc costs less: one point covering the crown, the
+/// cheapest drawing that still shows where all its leaves are (issue #42).
+fn crown_choice(
+    model: &TreeModel,
+    view: &TreeView,
+    costs: &PrimitiveCosts,
+    sizes: PixelRange,
+    tree: &TreeAtDepth,
+    depth: f32,
+    time: f32,
+    out: &mut TreeDrawList,
+) -> Option<Selected> {
+    let size = crown_size(model, view, depth)?;
+    let cost = costs.points(size, 1);
+    let far_points = far_points_floor(tree, costs, sizes);
+    if time >= far_points || cost >= far_points {
+        return None;
+    }
+    let leaf = model.crown_leaf();
+    push(out, 0..0, leaf..leaf + 1, size);
+    Some(Selected {
+        cost,
+        points: cost,
+        truncated: cost > time * (1.0 + 1e-6),
+        ..Selected::default()
+    })
 }
 
 /// A tree's leaves, all at one depth: the choice [`leaves`] makes group by group, made
@@ -1129,7 +1177,9 @@ pub(crate) fn leaves_at_depth_floor(
 /// choice is O(1) too: one or two ranges, which the render pass also chunks in one go.
 /// The predicted cost is exactly that of what is drawn. As group by group, every group
 /// draws at least one leaf; unlike it, when only far points fit every group's points
-/// have one size, the largest for a group of average size.
+/// have one size, the largest for a group of average size. With TCLOD and less time
+/// than those far points cost, the tree's [crown](TreeModel::crown) disc stands for all
+/// its leaves (when it is cheaper and no larger than the largest point).
 pub(crate) fn leaves_at_depth(
     model: &TreeModel,
     view: &TreeView,
@@ -1141,16 +1191,21 @@ pub(crate) fn leaves_at_depth(
 ) -> Selected {
     out.leaf_triangles.clear();
     out.leaf_points.clear();
-    let Some(TreeAtDepth {
+    let Some(tree) = TreeAtDepth::of(model, view, costs, depth) else {
+        return Selected::default();
+    };
+    let time = time.max(0.0);
+    if let LeafMethod::Tclod(sizes) = method
+        && let Some(crown) = crown_choice(model, view, costs, sizes, &tree, depth, time, out)
+    {
+        return crown;
+    }
+    let TreeAtDepth {
         n,
         groups,
         area,
         triangle_leaf,
-    }) = TreeAtDepth::of(model, view, costs, depth)
-    else {
-        return Selected::default();
-    };
-    let time = time.max(0.0);
+    } = tree;
     // The tree's (points, triangle leaves, point size). Points alone are far points, and
     // with triangles near ones (`static_split`).
     let (points, tris, size) = match method {

@@ -64,7 +64,19 @@ fn leaves_past_the_model_s_count_are_its_far_first_order() {
     let mut atlas = GeometryAtlas::default();
     let slot = atlas.push(&model);
     let n = model.leaves.len() as u32;
-    assert_eq!(slot.point_count, 2 * n);
+    // Both orders, then the crown disc.
+    assert_eq!(slot.point_count, 2 * n + 1);
+    let crown = model.crown.unwrap();
+    let disc = &atlas.primitives[(slot.points + model.crown_leaf()) as usize];
+    assert_eq!(
+        (disc.a, disc.ring_a, disc.b),
+        (crown.center.to_array(), crown.ring, crown.normal.to_array())
+    );
+    let crown_leaf = model.crown_leaf();
+    assert!(
+        slot.leaf_triangle_range(&(crown_leaf..crown_leaf + 1))
+            .is_empty()
+    );
     let far_first = model.far_first_leaves();
     for (i, &leaf) in far_first.iter().enumerate() {
         let index = n + i as u32;

@@ -3,7 +3,7 @@
 use crate::testing as common;
 
 use crate::cost::Calibration;
-use crate::draw::TreeDrawList;
+use crate::draw::{PointRun, TreeDrawList};
 use crate::lod::select::*;
 use crate::tree::{PixelRange, Projection, TreeModel};
 use bevy::math::Vec3;
@@ -314,9 +314,13 @@ fn a_tree_at_the_camera_fills_the_screen_once() {
 
 /// (triangle leaves, points) a list draws, and whether every group draws a leaf and no
 /// leaf is drawn twice.
+/// Leaves drawn as triangles and as points (the crown disc counts as one point), and
+/// whether the drawing is sound: no leaf drawn twice, every group drawn — by a leaf of
+/// its own, or by the crown disc alone.
 fn drawn(model: &TreeModel, list: &TreeDrawList) -> (u32, u32, bool) {
     let n = model.leaves.len();
     let far_first = model.far_first_leaves();
+    let crown = model.crown_leaf();
     let leaf = |l: u32| match l as usize {
         l if l < n => l,
         l => far_first[l - n] as usize,
@@ -326,15 +330,27 @@ fn drawn(model: &TreeModel, list: &TreeDrawList) -> (u32, u32, bool) {
         r.clone().for_each(|l| drawn[leaf(l)] += 1);
     }
     let triangles = drawn.iter().map(|&d| d as u32).sum();
+    let crowns = list
+        .leaf_points
+        .iter()
+        .filter(|r| r.leaves.contains(&crown))
+        .count() as u32;
     for r in &list.leaf_points {
-        r.leaves.clone().for_each(|l| drawn[leaf(l)] += 1);
+        r.leaves
+            .clone()
+            .filter(|&l| l != crown)
+            .for_each(|l| drawn[leaf(l)] += 1);
     }
-    let points = drawn.iter().map(|&d| d as u32).sum::<u32>() - triangles;
-    let sound = drawn.iter().all(|&d| d <= 1)
-        && model
-            .leaf_groups
-            .iter()
-            .all(|g| g.leaves.clone().any(|l| drawn[l as usize] == 1));
+    let points = drawn.iter().map(|&d| d as u32).sum::<u32>() - triangles + crowns;
+    let every_group = model
+        .leaf_groups
+        .iter()
+        .all(|g| g.leaves.clone().any(|l| drawn[l as usize] == 1));
+    let sound = if crowns > 0 {
+        crowns == 1 && model.crown.is_some() && drawn.iter().all(|&d| d == 0)
+    } else {
+        drawn.iter().all(|&d| d <= 1) && every_group
+    };
     (triangles, points, sound)
 }
 
@@ -343,7 +359,7 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
     let model = model();
     let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
     let groups_count = model.leaf_groups.len() as u32;
-    let (mut single_size_checks, mut far_points_checks) = (0, 0);
+    let (mut single_size_checks, mut far_points_checks, mut crown_checks) = (0, 0, 0);
     for depth in [40.0, 150.0, 600.0] {
         let v = view(depth);
         let g = groups(&model, depth);
@@ -392,6 +408,23 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
                     // One point size for the whole tree: the smallest whose static split
                     // fits (group by group, remainders passed on mix two sizes); or, when
                     // no split fits, only the far points that fit, at the largest size.
+                    // The crown disc: only when a far point of every group does not fit
+                    // (the tree without a crown overruns), and cheaper than those.
+                    LeafMethod::Tclod(_)
+                        if at_once.leaf_points.len() == 1
+                            && at_once.leaf_points[0].leaves.start == model.crown_leaf() =>
+                    {
+                        crown_checks += 1;
+                        let bare = TreeModel {
+                            crown: None,
+                            ..model.clone()
+                        };
+                        let mut list = TreeDrawList::default();
+                        let points =
+                            leaves_at_depth(&bare, &v, &costs, method, depth, time, &mut list);
+                        assert!(points.truncated, "{case}: {points:?}");
+                        assert!(whole.cost < points.cost, "{case}: {points:?}");
+                    }
                     LeafMethod::Tclod(sizes) if b.1 > 0 => {
                         assert_eq!(at_once.leaf_points.len(), 1, "{case}");
                         let size = at_once.leaf_points[0].size;
@@ -416,6 +449,7 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
     }
     assert!(single_size_checks > 3, "{single_size_checks}");
     assert!(far_points_checks > 0, "{far_points_checks}");
+    assert!(crown_checks > 0, "{crown_checks}");
 }
 
 /// A floor is what the budget pays an object before the hand-out: given it, the object
@@ -612,4 +646,94 @@ fn tclod_takes_tc_s_leaves_where_its_points_would_show_less() {
         ours > 1.5 * tc,
         "a far tree at ⅛ of full detail: TCLOD covered {ours} px, TC {tc} px"
     );
+}
+
+/// A far tree short of time draws its crown disc: one point at its crown leaf, the side
+/// of a square of the crown's projected area, cheaper than the far point of every leaf
+/// group it stands for; with those points' time it draws them instead, and a model
+/// without a crown (a group impostor) never draws one.
+#[test]
+fn a_far_tree_short_of_time_draws_one_disc_the_size_of_its_crown() {
+    let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
+    let method = LeafMethod::Tclod(PixelRange::default());
+    let mut discs = 0;
+    for name in ["slender", "broad", "grand", "dense"] {
+        let model = common::species(name);
+        let crown = model.crown.expect("a species' leaves have a crown");
+        let (lo, hi) = (model.bounds.min, model.bounds.max);
+        assert!(
+            crown.center.cmpge(lo).all() && crown.center.cmple(hi).all(),
+            "{name}: crown centre {} outside the tree",
+            crown.center
+        );
+        let side_view = (hi - lo).y * (hi - lo).x.max((hi - lo).z);
+        assert!(
+            crown.area > 0.05 * side_view && crown.area < side_view,
+            "{name}: crown area {} against a side view of {side_view}",
+            crown.area
+        );
+        let bare = TreeModel {
+            crown: None,
+            ..model.clone()
+        };
+        let crown_leaf = model.crown_leaf();
+        for depth in [60.0, 150.0, 400.0, 1500.0] {
+            let v = view(depth);
+            let case = format!("{name} at {depth}");
+            let mut list = TreeDrawList::default();
+            let chosen = leaves_at_depth(&model, &v, &costs, method, depth, 0.0, &mut list);
+            let bare_floor = leaves_at_depth_floor(&bare, &v, &costs, method, depth);
+            let side = crown.area.sqrt() * v.projection.pixels(1.0, depth);
+            if side > 64.5 {
+                // Larger than the largest point: no disc could cover it.
+                assert!(
+                    list.leaf_points
+                        .iter()
+                        .all(|r| !r.leaves.contains(&crown_leaf)),
+                    "{case}: a disc of {side} px"
+                );
+                continue;
+            }
+            discs += 1;
+            assert_eq!(
+                list.leaf_points,
+                vec![PointRun {
+                    leaves: crown_leaf..crown_leaf + 1,
+                    size: ((side + 0.5) as u32).max(1),
+                }],
+                "{case}"
+            );
+            assert!(list.leaf_triangles.is_empty(), "{case}");
+            let floor = leaves_at_depth_floor(&model, &v, &costs, method, depth);
+            assert_eq!(chosen.cost, floor, "{case}");
+            assert!(chosen.truncated, "{case}: no time at all");
+            assert!(
+                floor < bare_floor,
+                "{case}: disc {floor}, points {bare_floor}"
+            );
+            if side <= 8.0 {
+                assert!(
+                    8.0 * floor < bare_floor,
+                    "{case}: disc {floor}, points {bare_floor}"
+                );
+            }
+            // With the time of a far point per group, those points.
+            let with_points =
+                leaves_at_depth(&model, &v, &costs, method, depth, bare_floor, &mut list);
+            assert!(!with_points.truncated, "{case}: {with_points:?}");
+            assert!(
+                list.leaf_points
+                    .iter()
+                    .all(|r| !r.leaves.contains(&crown_leaf)),
+                "{case}: {list:?}"
+            );
+            assert!(drawn(&model, &list).2, "{case}");
+            leaves_at_depth(&bare, &v, &costs, method, depth, 0.0, &mut list);
+            assert!(
+                list.leaf_points.iter().all(|r| r.leaves.end <= crown_leaf),
+                "{case}: a crown without one"
+            );
+        }
+    }
+    assert!(discs >= 8, "{discs} discs");
 }

@@ -925,6 +925,82 @@ fn a_group_impostor_covers_where_its_trees_are() {
     }
 }
 
+/// A far tree's crown disc is drawn where its leaves are: the grand tree seen from afar
+/// at full detail (its trunk hidden, leaves only) and as its crown disc alone, the point
+/// sized as the LOD sizes it (the side of a square of the crown's projected area).
+#[test]
+fn a_crown_disc_covers_where_its_leaves_are() {
+    let model = species("grand");
+    let crown = model.crown.expect("a crown");
+    let height = model.bounds.max.y;
+    let target = Vec3::new(0.0, height * 0.5, 0.0);
+    let distance = height * 4.0;
+    let eye = target + Vec3::new(0.6, 0.25, 1.0).normalize() * distance;
+    // The test's camera: Bevy's default perspective (45° vertical) on a square image.
+    let pixels_per_unit = SIZE as f32
+        / (2.0 * (core::f32::consts::FRAC_PI_4 / 2.0).tan())
+        / eye.distance(crown.center);
+    let size = (crown.area.sqrt() * pixels_per_unit + 0.5) as u32;
+    assert!((8..=64).contains(&size), "a {size}-pixel disc");
+    let leaves_only = only(|l| l.leaf_triangles.push(0..model.leaves.len() as u32));
+    let (leaves, _) = render("crown_leaves", eye, target, {
+        let model = model.clone();
+        move |world| {
+            spawn_tree(world, model, Some(leaves_only));
+        }
+    });
+    let crown_leaf = model.crown_leaf();
+    let disc = only(|l| {
+        l.leaf_points.push(PointRun {
+            leaves: crown_leaf..crown_leaf + 1,
+            size,
+        });
+    });
+    let (disc, stats) = render("crown_disc", eye, target, move |world| {
+        spawn_tree(world, model, Some(disc));
+    });
+    assert_eq!(stats.counts.points, 1);
+    // As many pixels as the leaves, centred on them, and mostly over them: a disc of the
+    // crown's area is more compact than the leaves' ragged outline, so it covers their
+    // middle, not every block they reach.
+    let (inside, covered) = (share_inside(&disc, &leaves), share_inside(&leaves, &disc));
+    let ratio = disc.coverage() as f64 / leaves.coverage() as f64;
+    let offset = centroid(&disc).distance(centroid(&leaves));
+    println!(
+        "crown disc of {size} px: inside {inside:.3}, covers {covered:.3}, pixels ×{ratio:.2}, {offset:.1} px off"
+    );
+    assert!(
+        (0.7..1.4).contains(&ratio),
+        "×{ratio:.2} the leaves' pixels"
+    );
+    assert!(
+        offset < 0.15 * size as f32,
+        "{offset:.1} px off the leaves' centre"
+    );
+    assert!(
+        inside > 0.7,
+        "only {inside:.3} of the disc's blocks on the leaves"
+    );
+    assert!(
+        covered > 0.3,
+        "the disc covers {covered:.3} of the leaves' blocks"
+    );
+}
+
+/// The mean position of a picture's lit pixels.
+fn centroid(picture: &Picture) -> Vec2 {
+    let (mut sum, mut n) = (Vec2::ZERO, 0.0);
+    for y in 0..picture.height {
+        for x in 0..picture.width {
+            if picture.lit(x, y) {
+                sum += Vec2::new(x as f32, y as f32);
+                n += 1.0;
+            }
+        }
+    }
+    sum / n
+}
+
 /// An unlit cube of `color`, dithered by `range` when given.
 fn dithered_cube(world: &mut World, color: Color, range: Option<VisibilityRange>) {
     let cube = unlit_cube(world, color, Vec3::ZERO);

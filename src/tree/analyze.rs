@@ -295,6 +295,7 @@ pub fn analyze(
         options,
         &mut warnings,
     );
+    model.crown = super::crown::crown_of(&model);
     // One validation for every way a model enters: what the analysis builds is checked as
     // a loaded file is (a colour out of range in the input, say, is caught here).
     model

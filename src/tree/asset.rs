@@ -18,7 +18,7 @@ use super::species::{SpeciesDesc, SpeciesError};
 /// First bytes of a `*.tree.bin` file.
 pub(crate) const BINARY_MAGIC: &[u8; 8] = b"SHWDTREE";
 /// Version of the binary layout; files of another version are refused with a clear error.
-pub(crate) const BINARY_VERSION: u32 = 1;
+pub(crate) const BINARY_VERSION: u32 = 2;
 
 /// Why a tree file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -259,6 +259,18 @@ impl TreeModel {
         ] {
             if color.iter().any(is_bad_number) {
                 return Err(inconsistent(field, "must be finite and not negative"));
+            }
+        }
+        if let Some(crown) = &self.crown {
+            if !crown.center.is_finite() || !crown.normal.is_finite() || is_bad_number(&crown.area)
+            {
+                return Err(inconsistent(
+                    "crown",
+                    "must be finite, its area not negative",
+                ));
+            }
+            if crown.ring as usize >= self.rings.len() {
+                return Err(inconsistent("crown", "ring out of range"));
             }
         }
         Ok(())

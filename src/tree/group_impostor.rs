@@ -184,7 +184,12 @@ pub(crate) fn group_impostor_model(
             part: TreePart::Trunk,
         });
     }
-    analyze(&trunk, &leaves, &options).map(|analysis| analysis.model)
+    // A group stands for many crowns: one disc over them all would cover the gaps
+    // between its trees.
+    analyze(&trunk, &leaves, &options).map(|analysis| TreeModel {
+        crown: None,
+        ..analysis.model
+    })
 }
 
 /// A tree's main stem in model space: from its thickest root ring up through the thickest

@@ -4,6 +4,7 @@
 
 mod analyze;
 mod asset;
+mod crown;
 #[cfg(feature = "gltf")]
 mod gltf;
 mod group_impostor;
@@ -19,6 +20,7 @@ pub use analyze::{
 pub(crate) use asset::TreeModelsVersion;
 
 pub use asset::{TreeFileError, TreePlugin};
+pub use crown::Crown;
 #[cfg(feature = "gltf")]
 pub(crate) use gltf::GltfTreeLoader;
 #[cfg(feature = "gltf")]

@@ -9,6 +9,8 @@ use bevy::math::Vec3;
 use bevy::reflect::TypePath;
 use serde::{Deserialize, Serialize};
 
+use super::crown::Crown;
+
 /// Marks "no ring" in [`Ring::parent`].
 pub const NO_RING: u32 = u32::MAX;
 
@@ -238,6 +240,11 @@ pub struct TreeModel {
     pub bark_color: LinearRgb,
     /// Colour points are drawn with (mean leaf colour).
     pub leaf_color: LinearRgb,
+    /// The leaves seen as one disc: a far tree's cheapest drawing of its leaves (`None`
+    /// without leaves, and for group impostors, which stand for many crowns). Addressed
+    /// by [`TreeDrawList`](crate::draw::TreeDrawList) as leaf
+    /// [`crown_leaf`](Self::crown_leaf).
+    pub crown: Option<Crown>,
 }
 
 impl TreeModel {
@@ -249,6 +256,13 @@ impl TreeModel {
     /// Number of leaf triangles.
     pub fn leaf_triangle_count(&self) -> usize {
         self.leaf_indices.len() / 3
+    }
+
+    /// The leaf index a [`TreeDrawList`](crate::draw::TreeDrawList) draws the
+    /// [crown](Self::crown) disc with, as a point: `2 · leaves.len()`, after the leaves'
+    /// two orders.
+    pub fn crown_leaf(&self) -> u32 {
+        2 * self.leaves.len() as u32
     }
 
     /// The ring vertices of ring `ring` (trunk vertex indices).

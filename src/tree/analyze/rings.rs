@@ -526,6 +526,7 @@ impl Hierarchy {
             mean_leaf_triangle_area: 0.0,
             bark_color: input.color.unwrap_or(options.default_bark_color),
             leaf_color: options.default_leaf_color,
+            crown: None,
         })
     }
 }
