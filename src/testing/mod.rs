@@ -149,6 +149,39 @@ pub(crate) fn image_camera(app: &mut App, eye: Vec3, target: Vec3) {
     world.spawn(DirectionalLight::default());
 }
 
+/// The picture of the (first) camera rendering into an image, as RGBA bytes, once the
+/// next frame has rendered.
+#[cfg(all(test, feature = "gpu-tests"))]
+pub(crate) fn screenshot(app: &mut App) -> Vec<u8> {
+    use bevy::camera::RenderTarget;
+    use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+    use std::sync::{Arc, Mutex};
+
+    let image = app
+        .world_mut()
+        .query::<&RenderTarget>()
+        .iter(app.world())
+        .find_map(|target| match target {
+            RenderTarget::Image(image) => Some(image.handle.clone()),
+            _ => None,
+        })
+        .expect("an image camera");
+    let captured: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+    let sink = captured.clone();
+    app.world_mut().spawn(Screenshot::image(image)).observe(
+        move |event: On<ScreenshotCaptured>| {
+            *sink.lock().unwrap() = event.image.data.clone();
+        },
+    );
+    for _ in 0..20 {
+        app.update();
+        if let Some(rgba) = captured.lock().unwrap().take() {
+            return rgba;
+        }
+    }
+    panic!("no screenshot");
+}
+
 /// A headless app with a forest of `trees` trees (the default forest's species, in equal
 /// numbers, at its density) and a culling hierarchy 6 levels deep; returns it with the
 /// terrain's side. No view yet: see [`look_from`].

@@ -294,7 +294,7 @@ fn the_forest_pass_draws_every_producers_trees() {
     }
     // And on screen: taking each producer's trees away (not its terrain) changes the
     // picture.
-    let mut before = screenshot(&mut app);
+    let mut before = common::screenshot(&mut app);
     for (what, producer) in [
         ("the hand-placed tree", None),
         ("the first forest's trees", Some(forests[0])),
@@ -314,7 +314,7 @@ fn the_forest_pass_draws_every_producers_trees() {
         for _ in 0..4 {
             app.update();
         }
-        let after = screenshot(&mut app);
+        let after = common::screenshot(&mut app);
         let changed = before
             .chunks(4)
             .zip(after.chunks(4))
@@ -323,36 +323,4 @@ fn the_forest_pass_draws_every_producers_trees() {
         assert!(changed > 20, "{changed} pixels changed without {what}");
         before = after;
     }
-}
-
-/// The image camera's picture as RGBA bytes, once the next frame has rendered.
-#[cfg(feature = "gpu-tests")]
-fn screenshot(app: &mut App) -> Vec<u8> {
-    use bevy::camera::RenderTarget;
-    use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-    use std::sync::{Arc, Mutex};
-
-    let image = app
-        .world_mut()
-        .query::<&RenderTarget>()
-        .iter(app.world())
-        .find_map(|target| match target {
-            RenderTarget::Image(image) => Some(image.handle.clone()),
-            _ => None,
-        })
-        .expect("an image camera");
-    let captured: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
-    let sink = captured.clone();
-    app.world_mut().spawn(Screenshot::image(image)).observe(
-        move |event: On<ScreenshotCaptured>| {
-            *sink.lock().unwrap() = event.image.data.clone();
-        },
-    );
-    for _ in 0..20 {
-        app.update();
-        if let Some(rgba) = captured.lock().unwrap().take() {
-            return rgba;
-        }
-    }
-    panic!("no screenshot");
 }

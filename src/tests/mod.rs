@@ -18,6 +18,8 @@ mod instances;
 mod ladders;
 mod lod_app;
 mod lod_select;
+#[cfg(feature = "gpu-tests")]
+mod near_view;
 mod render_pass;
 mod tree_analysis;
 mod tree_gltf;
