@@ -16,8 +16,9 @@
 # start over. Override with FORESTS (trees per forest), PATHS, FRAMES (comma-separated
 # measured frames), FRACTIONS, CONFIGS, RUNS (runs of each configuration: every figure
 # is their median, since the same frame's selection varies from run to run as the
-# learned costs wander), OUT (the runs' directory), DOCS (where the table and the sheet
-# go) and FOREST (the forest tool's command, to compare builds).
+# learned costs wander), STATIC (0 leaves out the static LOD), OUT (the runs' directory),
+# DOCS (where the table and the sheet go) and FOREST (the forest tool's command, to
+# compare builds).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -27,6 +28,7 @@ FRAMES=${FRAMES:-"90,210"}
 FRACTIONS=${FRACTIONS:-"0.125 0.25 0.5"}
 CONFIGS=${CONFIGS:-"tclod:robin-hood tc:robin-hood tclod:funkhouser tclod:hierarchical tc:triangle-budget"}
 RUNS=${RUNS:-3}
+STATIC=${STATIC:-1}
 OUT=${OUT:-results/quality}
 DOCS=${DOCS:-docs}
 mkdir -p "$OUT" "$DOCS"
@@ -103,7 +105,8 @@ for trees in $FORESTS; do
         base="$trees-$path"
         shoot "$base-unlimited" --trees "$trees" --path "$path" --mode unlimited
         top=$(peak "$OUT/$base-unlimited.csv")
-        runs=("static:static:")
+        runs=()
+        [[ "$STATIC" != 0 ]] && runs+=("static:static:")
         for fraction in $FRACTIONS; do
             target=$(awk -v p="$top" -v f="$fraction" 'BEGIN { printf "%.1f", p * f }')
             for config in $CONFIGS; do
@@ -150,8 +153,12 @@ done
 base="${FORESTS%% *}-${PATHS%% *}"
 fraction=${FRACTIONS%% *}
 target=$(awk -v p="$(peak "$OUT/$base-unlimited.csv")" -v f="$fraction" 'BEGIN { printf "%.1f", p * f }')
-sheet=("$OUT/$base-unlimited-$last.png" "$OUT/$base-static-r1-$last.png")
-labels="full detail, static LOD"
+sheet=("$OUT/$base-unlimited-$last.png")
+labels="full detail"
+if [[ "$STATIC" != 0 ]]; then
+    sheet+=("$OUT/$base-static-r1-$last.png")
+    labels="$labels, static LOD"
+fi
 for config in $CONFIGS; do
     IFS=: read -r mode strategy <<< "$config"
     sheet+=("$OUT/$base-$mode-$strategy-$target-r1-$last.png")
