@@ -1065,6 +1065,8 @@ struct TreeAtDepth {
     area: f32,
     /// The time of one leaf as triangles.
     triangle_leaf: f32,
+    /// The depth.
+    depth: f32,
 }
 
 impl TreeAtDepth {
@@ -1084,6 +1086,7 @@ impl TreeAtDepth {
             groups: (model.leaf_groups.len() as u32).min(n),
             area,
             triangle_leaf: LeafTriangles::of(model, costs, area).per_leaf(costs, leaf_area),
+            depth,
         })
     }
 }
@@ -1145,11 +1148,10 @@ fn crown_choice(
     costs: &PrimitiveCosts,
     sizes: PixelRange,
     tree: &TreeAtDepth,
-    depth: f32,
     time: f32,
     out: &mut TreeDrawList,
 ) -> Option<Selected> {
-    let size = crown_size(model, view, depth)?;
+    let size = crown_size(model, view, tree.depth)?;
     let cost = costs.points(size, 1);
     let far_points = far_points_floor(tree, costs, sizes);
     if time >= far_points || cost >= far_points {
@@ -1196,7 +1198,7 @@ pub(crate) fn leaves_at_depth(
     };
     let time = time.max(0.0);
     if let LeafMethod::Tclod(sizes) = method
-        && let Some(crown) = crown_choice(model, view, costs, sizes, &tree, depth, time, out)
+        && let Some(crown) = crown_choice(model, view, costs, sizes, &tree, time, out)
     {
         return crown;
     }
@@ -1205,6 +1207,7 @@ pub(crate) fn leaves_at_depth(
         groups,
         area,
         triangle_leaf,
+        ..
     } = tree;
     // The tree's (points, triangle leaves, point size). Points alone are far points, and
     // with triangles near ones (`static_split`).

@@ -263,12 +263,9 @@ pub fn until_visible(app: &mut App) {
     panic!("the forest never loaded");
 }
 
-/// The default forest (600 trees), still and with fixed costs, seen from `eye` towards
-/// `target` (1.4 rad wide, 16:9, 540 pixels high); `extra` spawns more before the first
-/// frame. Returns once the forest is culled and in view.
+/// Spawns the default forest (600 trees) with fixed costs and no wind.
 #[cfg(test)]
-pub(crate) fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)) -> App {
-    let mut app = headless_app();
+pub(crate) fn spawn_still_default_forest(app: &mut App) {
     // Fixed costs: tests compare selections across frames, which learned costs would
     // otherwise change (nothing is measured in a headless app, but say so).
     app.world_mut().resource_mut::<CostSettings>().online = false;
@@ -280,6 +277,15 @@ pub(crate) fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&m
         .resource::<AssetServer>()
         .load("forests/default.ecosystem.ron");
     app.world_mut().spawn(Forest(handle));
+}
+
+/// The default forest (600 trees), still and with fixed costs, seen from `eye` towards
+/// `target` (1.4 rad wide, 16:9, 540 pixels high); `extra` spawns more before the first
+/// frame. Returns once the forest is culled and in view.
+#[cfg(test)]
+pub(crate) fn default_forest_view(eye: Vec3, target: Vec3, extra: impl FnOnce(&mut App)) -> App {
+    let mut app = headless_app();
+    spawn_still_default_forest(&mut app);
     let clip_from_world = Mat4::perspective_infinite_reverse_rh(0.8, 16.0 / 9.0, 0.1)
         * Mat4::look_at_rh(eye, target, Vec3::Y);
     app.world_mut().spawn((

@@ -106,13 +106,7 @@ fn at_a_near_view_tclod_covers_every_tree_at_least_as_much_as_tc() {
     .add_plugins(SherwoodPlugins);
     common::finish_plugins(&mut app);
     // Fixed costs and a still forest: both modes are judged by the same prices.
-    app.world_mut().resource_mut::<CostSettings>().online = false;
-    app.world_mut().resource_mut::<WindSettings>().enabled = false;
-    let forest = app
-        .world()
-        .resource::<AssetServer>()
-        .load("forests/default.ecosystem.ron");
-    app.world_mut().spawn(Forest(forest));
+    common::spawn_still_default_forest(&mut app);
     // Inside the default forest, a few metres up, looking across it: near trees fill
     // much of the picture, farther ones stand behind.
     let image = Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);

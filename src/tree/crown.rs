@@ -165,7 +165,7 @@ mod tests {
         triangles.extend(square(Vec2::new(0.0, 0.0), 1.0));
         triangles.extend(square(Vec2::new(0.5, 0.0), 1.0));
         triangles.extend(square(Vec2::new(8.0, 3.0), 1.0));
-        let (area, centroid) = silhouette(&triangles, |p| p.truncate()).unwrap();
+        let (area, centroid) = silhouette(&triangles, Vec3::truncate).unwrap();
         // (Sampled at cell centres, 96 cells across 9 units: an edge may gain or lose a
         // row of cells.)
         assert!((area - 2.5).abs() < 0.15, "area {area}");
@@ -176,7 +176,7 @@ mod tests {
     #[test]
     fn nothing_with_area_has_no_silhouette() {
         let line = [[Vec3::ZERO, Vec3::X, Vec3::X * 2.0]];
-        assert!(silhouette(&line, |p| p.truncate()).is_none());
-        assert!(silhouette(&[], |p| p.truncate()).is_none());
+        assert!(silhouette(&line, Vec3::truncate).is_none());
+        assert!(silhouette(&[], Vec3::truncate).is_none());
     }
 }
