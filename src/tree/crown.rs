@@ -11,7 +11,9 @@ use serde::{Deserialize, Serialize};
 
 use super::model::TreeModel;
 
-/// The leaves of a tree seen as one disc (see the [module](self)).
+/// The leaves of a tree seen as one disc: where their silhouette lies, how much of the view
+/// it fills, and how a disc standing for it is lit. TCLOD draws it (one point) for a far
+/// tree short of the time for a point per leaf group.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Crown {
     /// Centre of the leaves' silhouette, model space.
