@@ -1,12 +1,14 @@
 //! What the Budget stage aims a frame's work at: the target, or under vsync the last
 //! vertical blank within it less a margin from the measured scatter of frame times
-//! (see [`budget::deadline`](crate::budget::deadline)); and what the display made of the
-//! last measured frame, for the diagnostics.
+//! (see [`budget::deadline`](crate::budget::deadline)), where the margins come from the
+//! scatter's quantiles calibrated by the frames measured; and what the display made of
+//! the last measured frame, for the diagnostics.
+
+use std::collections::VecDeque;
 
 use super::FrameGoal;
-use crate::budget::deadline::{
-    allowed_periods, periods_taken, tail_target, upper_normal_quantile, work_target,
-};
+use crate::budget::deadline::{allowed_periods, periods_taken, tail_target, work_target};
+use crate::cost::online::{LogSpread, QuantileCalibration};
 use crate::cost::{CostModel, FrameBound, LearnedFrame, MeasuredPacing};
 use crate::display::{DisplayTiming, VsyncMode, VsyncSettings};
 
@@ -19,38 +21,111 @@ pub(super) struct Aim {
     pub(super) period: Option<f32>,
 }
 
-/// Aims a frame of `target` seconds at `goal`.
+/// Where the aim's quantiles of the frame-time scatter lie, calibrated by how often the
+/// frames measured passed them ([`QuantileCalibration`]): for the tail goal's share, its
+/// rare share, and the share of frames allowed to miss their vertical blank.
+#[derive(Default)]
+pub(super) struct AimCalibration {
+    calibrations: [Option<QuantileCalibration>; 3],
+    /// Each recent frame and the factors its aim used, oldest first.
+    aimed: VecDeque<(u64, [f32; 3])>,
+}
+
+/// How many frames' factors are kept for their measurements (which arrive a frame or two
+/// late).
+const KEPT_AIMS: usize = 32;
+
+impl AimCalibration {
+    /// Learns from the latest frame the cost model measured, if it has not yet.
+    fn learn(&mut self, model: &CostModel) {
+        let Some(frame) = model.last_learned() else {
+            return;
+        };
+        let number = frame.predicted.frame;
+        let Some(position) = self.aimed.iter().position(|(n, _)| *n == number) else {
+            return;
+        };
+        let (_, factors) = self.aimed[position];
+        self.aimed.drain(..=position);
+        let (predicted, measured) = (frame.predicted.frame_time, frame.measured.work_interval());
+        for (calibration, factor) in self.calibrations.iter_mut().zip(factors) {
+            if let Some(calibration) = calibration {
+                calibration.observe(factor, predicted, measured);
+            }
+        }
+    }
+
+    /// The factor on a prediction that `share` of frames exceed; a calibration starts
+    /// afresh when its share changes.
+    fn factor(&mut self, slot: usize, share: f32, spread: &LogSpread) -> f32 {
+        let calibration = &mut self.calibrations[slot];
+        if calibration.is_none_or(|c| c.share() != QuantileCalibration::new(share).share()) {
+            *calibration = Some(QuantileCalibration::new(share));
+        }
+        calibration.map_or(1.0, |c| c.factor(spread))
+    }
+
+    /// The offsets the calibrations learned, as log factors: the tail goal's and the
+    /// rare bound's (0 when not in use).
+    pub(super) fn offsets(&self) -> [f32; 2] {
+        let offset = |c: &Option<QuantileCalibration>| c.map_or(0.0, |c| c.offset());
+        [offset(&self.calibrations[0]), offset(&self.calibrations[1])]
+    }
+}
+
+/// What the aim is taken from beside the target and the goal.
+pub(super) struct AimInputs<'a> {
+    pub(super) display: Option<&'a DisplayTiming>,
+    pub(super) pacing: Option<&'a MeasuredPacing>,
+    pub(super) vsync: Option<&'a VsyncSettings>,
+    pub(super) model: &'a CostModel,
+}
+
+/// Aims frame `frame` of `target` seconds at `goal`, after learning from the latest
+/// measured frame how far the scatter's quantiles lie.
 pub(super) fn aim(
+    calibration: &mut AimCalibration,
+    frame: u64,
     target: f32,
     goal: FrameGoal,
-    display: Option<&DisplayTiming>,
-    pacing: Option<&MeasuredPacing>,
-    vsync: Option<&VsyncSettings>,
-    model: &CostModel,
+    inputs: &AimInputs,
 ) -> Aim {
-    let settings = vsync.copied().unwrap_or_default();
+    calibration.learn(inputs.model);
+    let settings = inputs.vsync.copied().unwrap_or_default();
     let period = match settings.mode {
         VsyncMode::Off => None,
-        VsyncMode::On { .. } => display.and_then(DisplayTiming::refresh_period),
-        VsyncMode::FromWindow => {
-            pacing.and_then(|p| p.period(display.and_then(DisplayTiming::refresh_period)))
-        }
+        VsyncMode::On { .. } => inputs.display.and_then(DisplayTiming::refresh_period),
+        VsyncMode::FromWindow => inputs
+            .pacing
+            .and_then(|p| p.period(inputs.display.and_then(DisplayTiming::refresh_period))),
     };
-    let spread = model.frame_spread();
-    let vblank_factor = spread.quantile_factor(upper_normal_quantile(settings.missed_vblank_share));
+    let spread = inputs.model.frame_spread();
+    let mut factors = [f32::NAN; 3];
     let tail = match goal {
         FrameGoal::Mean => target,
-        FrameGoal::Tail { share, slack } => tail_target(
-            target,
+        FrameGoal::Tail {
+            share,
             slack,
-            spread.quantile_factor(upper_normal_quantile(share)),
-        ),
+            rare_share,
+            rare_slack,
+        } => {
+            factors[0] = calibration.factor(0, share, spread);
+            factors[1] = calibration.factor(1, rare_share, spread);
+            tail_target(target, slack, factors[0]).min(tail_target(target, rare_slack, factors[1]))
+        }
     };
     // Under vsync, never past the last vertical blank the target allows.
     let work = match period {
-        Some(_) => work_target(target, period, vblank_factor).min(tail),
+        Some(_) => {
+            factors[2] = calibration.factor(2, settings.missed_vblank_share, spread);
+            work_target(target, period, factors[2]).min(tail)
+        }
         None => tail,
     };
+    if calibration.aimed.len() == KEPT_AIMS {
+        calibration.aimed.pop_front();
+    }
+    calibration.aimed.push_back((frame, factors));
     Aim { work, period }
 }
 

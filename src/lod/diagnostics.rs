@@ -63,6 +63,11 @@ pub struct LodDiagnostics {
     /// How the frames' work scatters around its prediction: the standard deviation of
     /// the log ratio (0.05 is about 5%).
     pub frame_spread: f32,
+    /// How far the tail goal's quantile of that scatter, then its rare bound's, were
+    /// moved by how often measured frames passed them, as log factors (0.05 is about
+    /// 5%): positive where frame times have a longer tail than a log-normal scatter (0
+    /// for the mean goal).
+    pub tail_offsets: [f32; 2],
     /// The measured frame's work, ms: its frame time less the render world's waits for
     /// the display (at least the longer of its logic and its rendering).
     pub measured_work_ms: f32,

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 
+use super::aim::{AimCalibration, AimInputs};
 use super::alerts::{self, TargetWatch};
 use super::draw_lists::ChosenLists;
 use super::group_impostors::GroupImpostors;
@@ -29,12 +30,13 @@ use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::tree::TreeModel;
 use crate::view::LodView;
 
-/// What the display and its pacing tell the aim.
+/// What the display and its pacing tell the aim, and the aim's calibration.
 #[derive(SystemParam)]
-pub(super) struct Pacing<'w> {
+pub(super) struct Pacing<'w, 's> {
     display: Option<Res<'w, DisplayTiming>>,
     measured: Option<Res<'w, MeasuredPacing>>,
     vsync: Option<Res<'w, VsyncSettings>>,
+    calibration: Local<'s, AimCalibration>,
 }
 
 /// The tree models, and what the hierarchical strategy reads beside the objects.
@@ -369,6 +371,8 @@ struct FrameTimes {
     /// The target, and what the work is aimed at.
     target: f32,
     aim: super::aim::Aim,
+    /// [`LodDiagnostics::tail_offsets`].
+    tail_offsets: [f32; 2],
     /// The rendering time left for the trees and ladders.
     rendering: f32,
     /// No rendering time is left in the target (in a time-critical mode).
@@ -382,19 +386,24 @@ fn frame_times(
     clock: &FrameClock,
     visible_instances: u32,
     app_mesh_load: AppMeshLoad,
-    pacing: &Pacing,
+    pacing: &mut Pacing,
 ) -> FrameTimes {
     // This frame's logic so far is known: only the rest of the update is predicted.
     let logic_so_far = clock.elapsed();
     let logic = logic_so_far + cost_model.logic_after_budget(visible_instances);
     let target = budget.target_ms.max(0.0) / 1000.0;
+    let inputs = AimInputs {
+        display: pacing.display.as_deref(),
+        pacing: pacing.measured.as_deref(),
+        vsync: pacing.vsync.as_deref(),
+        model: cost_model,
+    };
     let aim = super::aim::aim(
+        &mut pacing.calibration,
+        clock.frame,
         target,
         budget.goal,
-        pacing.display.as_deref(),
-        pacing.measured.as_deref(),
-        pacing.vsync.as_deref(),
-        cost_model,
+        &inputs,
     );
     let available = cost_model.overlap().rendering_time(logic, aim.work);
     // The app's own visible meshes are not budgeted but predicted: they take their time
@@ -417,6 +426,7 @@ fn frame_times(
         app_mesh_draws: app_mesh_load.draws,
         target,
         aim,
+        tail_offsets: pacing.calibration.offsets(),
         rendering: (available - fixed - app_meshes.cost).max(0.0),
         target_below_logic: available <= 0.0 && budget.mode.is_time_critical(),
     }
@@ -436,7 +446,7 @@ pub(super) fn hand_out_time(
     mut ladders: ResMut<LadderObjects>,
     report: Res<BenefitReport>,
     mut boxes: Boxes,
-    pacing: Pacing,
+    mut pacing: Pacing,
     mut commands: Commands,
 ) {
     let start = Instant::now();
@@ -451,7 +461,7 @@ pub(super) fn hand_out_time(
         &clock,
         visible.instances_in_view(),
         ladders.app_meshes,
-        &pacing,
+        &mut pacing,
     );
 
     let time_critical = budget.mode.is_time_critical();
@@ -845,6 +855,7 @@ fn frame_diagnostics(
         work_target_ms: ms(times.aim.work),
         vsync_period_ms: ms(times.aim.period.unwrap_or(0.0)),
         frame_spread: cost_model.frame_spread().sigma(),
+        tail_offsets: times.tail_offsets,
         measured_work_ms: shown.work_ms,
         measured_gpu_ms: shown.gpu_ms,
         measured_waited_ms: shown.waited_ms,
