@@ -62,6 +62,10 @@ pub struct FrameRecord {
     pub work_target_ms: f32,
     /// The learned scatter of frame times (std of the log ratio).
     pub frame_spread: f32,
+    /// How far the tail goal's quantile was calibrated, as a log factor.
+    pub tail_offset: f32,
+    /// How far the rare bound's quantile was calibrated, as a log factor.
+    pub rare_offset: f32,
     /// Share of the last second's measured frames over the goal's limit.
     pub frames_over_share: f32,
     /// With `--vsync-hz`: refresh periods the frame took (0 without).
@@ -244,6 +248,8 @@ pub(crate) mod tests {
                 bound: Bound::Unknown,
                 work_target_ms: 50.0,
                 frame_spread: 0.05,
+                tail_offset: 0.0,
+                rare_offset: 0.0,
                 frames_over_share: 0.0,
                 periods: 0,
                 missed_vblank: 0,

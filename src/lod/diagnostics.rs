@@ -231,7 +231,7 @@ mod tests {
 pub struct LodDiagnosticsPlugin;
 
 /// The published diagnostics, with how each is read off [`LodDiagnostics`].
-const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 28] = [
+const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 30] = [
     (
         DiagnosticPath::const_new("sherwood/visible_objects"),
         "",
@@ -346,6 +346,12 @@ const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 28] = [
         "",
         |d| f64::from(d.frame_spread),
     ),
+    (DiagnosticPath::const_new("sherwood/tail_offset"), "", |d| {
+        f64::from(d.tail_offsets[0])
+    }),
+    (DiagnosticPath::const_new("sherwood/rare_offset"), "", |d| {
+        f64::from(d.tail_offsets[1])
+    }),
     (
         DiagnosticPath::const_new("sherwood/frames_over_share"),
         "",

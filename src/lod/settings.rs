@@ -84,15 +84,30 @@ pub enum FrameGoal {
     },
 }
 
+/// The default rare bound: at most 1% of frames over 1.25 × target.
+const RARE_SHARE: f32 = 0.01;
+const RARE_SLACK: f32 = 1.25;
+
 fn default_rare_share() -> f32 {
-    0.01
+    RARE_SHARE
 }
 
 fn default_rare_slack() -> f32 {
-    1.25
+    RARE_SLACK
 }
 
 impl FrameGoal {
+    /// [`FrameGoal::Tail`]: at most `share` of the frames longer than `slack × target`,
+    /// with the default rare bound (at most 1% longer than 1.25 × target).
+    pub const fn tail(share: f32, slack: f32) -> Self {
+        Self::Tail {
+            share,
+            slack,
+            rare_share: RARE_SHARE,
+            rare_slack: RARE_SLACK,
+        }
+    }
+
     /// The frame time past which a frame of `target` counts as over, in the target's
     /// unit: `slack × target` for [`FrameGoal::Tail`] (the slack taken within 1 to 4, as
     /// the budget does), and for [`FrameGoal::Mean`], which has no slack, 1.1 × target
@@ -108,12 +123,7 @@ impl FrameGoal {
 
 impl Default for FrameGoal {
     fn default() -> Self {
-        Self::Tail {
-            share: 0.05,
-            slack: 1.1,
-            rare_share: default_rare_share(),
-            rare_slack: default_rare_slack(),
-        }
+        Self::tail(0.05, 1.1)
     }
 }
 

@@ -160,9 +160,11 @@ fn hud_text(
         if let Some(b) = budget {
             let _ = writeln!(
                 s,
-                "goal      work aimed at {:.1} ms (scatter {:.1}%), {:.0}% of the last second over {:.1} ms",
+                "goal      work aimed at {:.1} ms (scatter {:.1}%, calibrated {:+.1}% / {:+.1}%), {:.0}% of the last second over {:.1} ms",
                 d.work_target_ms,
                 d.frame_spread * 100.0,
+                d.tail_offsets[0] * 100.0,
+                d.tail_offsets[1] * 100.0,
                 d.frames_over_share * 100.0,
                 b.goal.over_limit(b.target_ms)
             );

@@ -98,6 +98,8 @@ impl Row {
             },
             work_target_ms: d.work_target_ms,
             frame_spread: d.frame_spread,
+            tail_offset: d.tail_offsets[0],
+            rare_offset: d.tail_offsets[1],
             frames_over_share: d.frames_over_share,
             periods: self.periods,
             missed_vblank: u8::from(self.missed_vblank),
