@@ -586,12 +586,15 @@ fn frames_under_noise(
     sigma: impl Fn(u32) -> f32 + 'static,
 ) -> Vec<(bool, f32, f32)> {
     let mut uniform = common::unit_noise();
-    // A standard normal, by Box–Muller.
-    let mut normal = move || {
-        let (u, v) = (uniform().max(1e-7), uniform());
-        (-2.0 * u.ln()).sqrt() * (core::f32::consts::TAU * v).cos()
-    };
-    frames_scattered(goal, steady, frames, move |k| sigma(k) * normal())
+    frames_scattered(goal, steady, frames, move |k| {
+        sigma(k) * normal(&mut uniform)
+    })
+}
+
+/// A standard normal number from two of `uniform`'s, by Box–Muller.
+fn normal(uniform: &mut impl FnMut() -> f32) -> f32 {
+    let (u, v) = (uniform().max(1e-7), uniform());
+    (-2.0 * u.ln()).sqrt() * (core::f32::consts::TAU * v).cos()
 }
 
 /// [`frames_under_noise`] on a machine whose frame `k` takes `exp(scatter(k))` times
@@ -714,8 +717,7 @@ fn the_tail_goal_keeps_its_share_of_frames_over_the_slack() {
 fn the_tail_goal_keeps_its_shares_where_frame_times_have_a_long_tail() {
     let mut uniform = common::unit_noise();
     let scatter = move |_| {
-        let (u, v) = (uniform().max(1e-7), uniform());
-        let normal = (-2.0 * u.ln()).sqrt() * (core::f32::consts::TAU * v).cos();
+        let normal = normal(&mut uniform);
         let hitch = if uniform() < 0.04 {
             -0.2 * (1.0 - uniform()).max(1e-7).ln()
         } else {
