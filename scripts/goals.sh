@@ -10,8 +10,9 @@
 #
 # Resumable like scripts/reproduce.sh (each run's file written when it completes; delete
 # results/goals to start over). Override with SIZES, PATHS, FRACTIONS, GOALS (tail, mean,
-# hF = the mean goal at F x target), HOLD_FRAMES and PATH_FRAMES (empty: the paper's
-# lengths, linear 1100 and zigzag 1700 frames).
+# cut = the tail goal cutting its aim after 2 frames over, hF = the mean goal at F x
+# target), HOLD_FRAMES and PATH_FRAMES (empty: the paper's lengths, linear 1100 and zigzag
+# 1700 frames).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -41,6 +42,7 @@ source "$(dirname "$0")/lib/runs.sh"
 goal_flags() {
     case "$1" in
         tail) echo "--goal tail" ;;
+        cut) echo "--goal tail --overrun-cut 2" ;;
         mean) echo "--goal mean" ;;
         h*) echo "--goal mean --headroom ${1#h}" ;;
         *) echo "unknown goal $1" >&2; exit 2 ;;

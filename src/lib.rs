@@ -53,7 +53,7 @@ pub mod prelude {
     pub use crate::lod::ValueFunction;
     pub use crate::lod::{
         FrameBudget, FrameGoal, LodDiagnostics, LodDiagnosticsPlugin, LodMode, LodPlugin,
-        SteadySelection, StrategyKind, TargetUnreachable, Unreachable,
+        OverrunCut, SteadySelection, StrategyKind, TargetUnreachable, Unreachable,
     };
     #[cfg(feature = "hud")]
     pub use crate::render::{ForestHud, ForestHudPlugin};

@@ -66,6 +66,9 @@ pub struct FrameRecord {
     pub tail_offset: f32,
     /// How far the rare bound's quantile was calibrated, as a log factor.
     pub rare_offset: f32,
+    /// The factor the overrun cut put on the aim (1: none; `--overrun-cut`).
+    #[serde(default = "no_cut")]
+    pub overrun_factor: f32,
     /// Share of the last second's measured frames over the goal's limit.
     pub frames_over_share: f32,
     /// With `--vsync-hz`: refresh periods the frame took (0 without).
@@ -250,6 +253,7 @@ pub(crate) mod tests {
                 frame_spread: 0.05,
                 tail_offset: 0.0,
                 rare_offset: 0.0,
+                overrun_factor: 1.0,
                 frames_over_share: 0.0,
                 periods: 0,
                 missed_vblank: 0,
@@ -340,4 +344,9 @@ pub(crate) mod tests {
         assert!(e.contains("line: 3") || e.contains("line 3"), "{e}");
         std::fs::remove_file(file).unwrap();
     }
+}
+
+/// Records written before the overrun cut had none.
+fn no_cut() -> f32 {
+    1.0
 }

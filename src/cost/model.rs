@@ -324,6 +324,11 @@ impl CostModel {
         self.reset();
     }
 
+    /// The learning's time constants, as used.
+    pub(crate) fn rates(&self) -> LearningRates {
+        self.rates
+    }
+
     /// The learning's time constants; changing them forgets what was learned.
     pub(crate) fn set_rates(&mut self, rates: LearningRates) {
         self.rates = rates.usable();

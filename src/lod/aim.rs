@@ -7,6 +7,7 @@
 use std::collections::VecDeque;
 
 use super::FrameGoal;
+use super::overrun::{OverrunCut, OverrunReaction};
 use crate::budget::deadline::{allowed_periods, periods_taken, tail_target, work_target};
 use crate::cost::online::{LogSpread, QuantileCalibration};
 use crate::cost::{CostModel, FrameBound, LearnedFrame, MeasuredPacing};
@@ -19,6 +20,9 @@ pub(super) struct Aim {
     pub(super) work: f32,
     /// The refresh period under vsync, seconds.
     pub(super) period: Option<f32>,
+    /// The aim was cut after frames over the goal's limit ([`OverrunCut`]): a still
+    /// scene's kept selection is handed out anew.
+    pub(super) cut: bool,
 }
 
 /// Where the aim's quantiles of the frame-time scatter lie, calibrated by how often the
@@ -29,6 +33,8 @@ pub(super) struct AimCalibration {
     calibrations: [Option<QuantileCalibration>; 3],
     /// Each recent frame and the factors its aim used, oldest first.
     aimed: VecDeque<(u64, [f32; 3])>,
+    /// The cut after consecutive frames over the goal's limit.
+    overrun: OverrunReaction,
 }
 
 /// How many frames' factors are kept for their measurements (which arrive a frame or two
@@ -36,8 +42,9 @@ pub(super) struct AimCalibration {
 const KEPT_AIMS: usize = 32;
 
 impl AimCalibration {
-    /// Learns from the latest frame the cost model measured, if it has not yet.
-    fn learn(&mut self, model: &CostModel) {
+    /// Learns from the latest frame the cost model measured, if it has not yet; `limit`
+    /// is the goal's limit for that frame, seconds.
+    fn learn(&mut self, model: &CostModel, cut: OverrunCut, limit: f32) {
         let Some(frame) = model.last_learned() else {
             return;
         };
@@ -48,6 +55,14 @@ impl AimCalibration {
         let (_, factors) = self.aimed[position];
         self.aimed.drain(..=position);
         let (predicted, measured) = (frame.predicted.frame_time, frame.measured.work_interval());
+        self.overrun.observe(
+            cut,
+            measured,
+            predicted,
+            limit,
+            frame.measured.interval,
+            model.rates().speed_seconds,
+        );
         for (calibration, factor) in self.calibrations.iter_mut().zip(factors) {
             if let Some(calibration) = calibration {
                 calibration.observe(factor, predicted, measured);
@@ -65,6 +80,11 @@ impl AimCalibration {
         calibration.map_or(1.0, |c| c.factor(spread))
     }
 
+    /// The factor the overrun cut puts on the aim (1: none).
+    pub(super) fn overrun_factor(&self) -> f32 {
+        self.overrun.factor()
+    }
+
     /// The offsets the calibrations learned, as log factors: the tail goal's and the
     /// rare bound's (0 when not in use).
     pub(super) fn offsets(&self) -> [f32; 2] {
@@ -79,6 +99,7 @@ pub(super) struct AimInputs<'a> {
     pub(super) pacing: Option<&'a MeasuredPacing>,
     pub(super) vsync: Option<&'a VsyncSettings>,
     pub(super) model: &'a CostModel,
+    pub(super) overrun_cut: OverrunCut,
 }
 
 /// Aims frame `frame` of `target` seconds at `goal`, after learning from the latest
@@ -90,7 +111,7 @@ pub(super) fn aim(
     goal: FrameGoal,
     inputs: &AimInputs,
 ) -> Aim {
-    calibration.learn(inputs.model);
+    calibration.learn(inputs.model, inputs.overrun_cut, goal.over_limit(target));
     let settings = inputs.vsync.copied().unwrap_or_default();
     let period = match settings.mode {
         VsyncMode::Off => None,
@@ -126,7 +147,11 @@ pub(super) fn aim(
         calibration.aimed.pop_front();
     }
     calibration.aimed.push_back((frame, factors));
-    Aim { work, period }
+    Aim {
+        work: work * calibration.overrun.factor(),
+        period,
+        cut: calibration.overrun.just_cut(),
+    }
 }
 
 /// What the display made of a measured frame.

@@ -68,6 +68,9 @@ pub struct LodDiagnostics {
     /// 5%): positive where frame times have a longer tail than a log-normal scatter (0
     /// for the mean goal).
     pub tail_offsets: [f32; 2],
+    /// The factor the overrun cut put on this frame's aim
+    /// ([`FrameBudget::overrun_cut`](super::FrameBudget::overrun_cut); 1: no cut).
+    pub overrun_factor: f32,
     /// The measured frame's work, ms: its frame time less the render world's waits for
     /// the display (at least the longer of its logic and its rendering).
     pub measured_work_ms: f32,
@@ -231,7 +234,7 @@ mod tests {
 pub struct LodDiagnosticsPlugin;
 
 /// The published diagnostics, with how each is read off [`LodDiagnostics`].
-const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 30] = [
+const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 31] = [
     (
         DiagnosticPath::const_new("sherwood/visible_objects"),
         "",
@@ -352,6 +355,11 @@ const PATHS: [(DiagnosticPath, &str, fn(&LodDiagnostics) -> f64); 30] = [
     (DiagnosticPath::const_new("sherwood/rare_offset"), "", |d| {
         f64::from(d.tail_offsets[1])
     }),
+    (
+        DiagnosticPath::const_new("sherwood/overrun_factor"),
+        "",
+        |d| f64::from(d.overrun_factor),
+    ),
     (
         DiagnosticPath::const_new("sherwood/frames_over_share"),
         "",

@@ -44,6 +44,7 @@ mod diagnostics;
 mod draw_lists;
 mod group_impostors;
 mod hand_out;
+mod overrun;
 mod search;
 pub(crate) mod select;
 mod settings;
@@ -61,6 +62,7 @@ pub use settings::{
     BenefitReport, FrameBudget, FrameGoal, GroupImpostorSettings, LodMode, StrategyKind,
 };
 pub(crate) use settings::{RUNG_FRACTIONS, TARGET_WARNING_SECS};
+pub use overrun::OverrunCut;
 pub use steady::SteadySelection;
 pub(crate) use strategy::HierarchicalCut;
 

@@ -885,15 +885,18 @@ enum TclodChoice {
 
 impl TclodChoice {
     /// How much of `n` leaves projecting `area` pixels this choice shows, pixels: the
-    /// leaves drawn as triangles, exactly; the pixels points cover, discounted by how
-    /// much larger than a leaf each point is on screen (a disc of four leaves' size
-    /// stands for their area, not their shapes; a pixel is the finest detail there is).
+    /// leaves drawn as triangles, exactly; the pixels points cover, discounted by the
+    /// ratio of a leaf's area to a point's on screen: a disc larger than a leaf shows
+    /// about one leaf — where it is and its colour, not the shapes of the leaves it
+    /// covers (a pixel is the finest detail there is). With the discount linear in the
+    /// size, near leaf groups chose 10–20 px discs over as many triangle leaves, and SSIM
+    /// at a near view fell below TC's (issue #42).
     fn shown(self, n: u32, area: f32) -> f32 {
         let leaf_area = area / n.max(1) as f32;
         let leaf_size = leaf_area.sqrt().max(1.0);
         let points = |count: u32, size: u32, room: f32| {
             let s = size.max(1) as f32;
-            (count as f32 * s * s).min(room.max(0.0)) * (leaf_size / s).min(1.0)
+            (count as f32 * s * s).min(room.max(0.0)) * (leaf_size / s).min(1.0).powi(2)
         };
         match self {
             Self::Full => area,
@@ -1268,5 +1271,42 @@ pub(crate) fn leaves_at_depth(
         mesh_pixels: 0.0,
         truncated: overran(method, cost, time),
         full: points == 0 && tris == n,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Costs where a triangle costs `triangle` seconds and a point `point` whatever its
+    /// size, nothing per pixel.
+    fn costs(triangle: f32, point: f32) -> PrimitiveCosts {
+        PrimitiveCosts {
+            triangle,
+            triangle_pixel: 0.0,
+            line: vec![1e-6; MAX_PRIMITIVE_PIXELS as usize],
+            line_pixel: vec![0.0; MAX_PRIMITIVE_PIXELS as usize],
+            point: vec![point; MAX_PRIMITIVE_PIXELS as usize],
+            point_pixel: vec![0.0; MAX_PRIMITIVE_PIXELS as usize],
+            mesh_draw: 0.0,
+            mesh_triangle: 0.0,
+            mesh_pixel: 0.0,
+            max_pixels: f32::INFINITY,
+        }
+    }
+
+    /// A near group of 100 leaves of 16 px each, a point costing two leaves as
+    /// triangles, time for 20 leaves: 20 leaves as triangles, not 9 discs of 13 px (which
+    /// cover more pixels, but each shows one leaf where it is, not the shapes of the 10
+    /// it covers). A far group of 1 px leaves whose points are cheaper than its
+    /// triangles: points, covering every leaf's pixel.
+    #[test]
+    fn near_leaves_stay_triangles_where_discs_would_show_fewer_leaves() {
+        let sizes = PixelRange::default();
+        let near = tclod_choice(100, 1600.0, 1, 1e-6, &costs(1e-6, 2e-6), sizes, 20e-6);
+        assert_eq!(near.0, TclodChoice::Triangles(20), "{near:?}");
+        assert!((near.1.cost - 20e-6).abs() < 1e-9, "{near:?}");
+        let far = tclod_choice(100, 100.0, 1, 1e-6, &costs(1e-6, 0.5e-6), sizes, 20e-6);
+        assert_eq!(far.0, TclodChoice::Split(2), "{far:?}");
     }
 }

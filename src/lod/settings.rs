@@ -3,7 +3,7 @@
 use bevy::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::SteadySelection;
+use super::{OverrunCut, SteadySelection};
 use crate::budget::ValueFunction;
 use crate::tree::PixelRange;
 
@@ -179,6 +179,10 @@ pub struct FrameBudget {
     /// [`LodDiagnostics::selection_kept`](super::LodDiagnostics::selection_kept) says when
     /// it did.
     pub steady: SteadySelection,
+    /// How the aim reacts to consecutive frames over the goal's limit. Default:
+    /// [`OverrunCut::OFF`] (measured in `docs/goals-calibrated.md`: with the tail goal's
+    /// calibrated margin, cutting after 2 frames over gave no better tail for its detail).
+    pub overrun_cut: OverrunCut,
 }
 
 impl Default for FrameBudget {
@@ -195,6 +199,7 @@ impl Default for FrameBudget {
             point_sizes: PixelRange::default(),
             far_refresh: 1,
             steady: SteadySelection::default(),
+            overrun_cut: OverrunCut::default(),
         }
     }
 }

@@ -100,6 +100,7 @@ impl Row {
             frame_spread: d.frame_spread,
             tail_offset: d.tail_offsets[0],
             rare_offset: d.tail_offsets[1],
+            overrun_factor: d.overrun_factor,
             frames_over_share: d.frames_over_share,
             periods: self.periods,
             missed_vblank: u8::from(self.missed_vblank),

@@ -67,6 +67,9 @@ pub fn run(mut args: Args) -> AppExit {
         value: args.value.function(),
         far_refresh: args.far_refresh,
         steady: args.steady(),
+        overrun_cut: OverrunCut {
+            after_frames: args.overrun_cut,
+        },
         ..default()
     })
     .insert_resource(BenefitReport {
