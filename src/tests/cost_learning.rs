@@ -837,7 +837,7 @@ fn the_tail_goal_follows_a_regime_switch_of_the_machine_s_scatter() {
 /// A machine that turns 40% slower at once, at a still camera (the default steady
 /// selection): the cost model learns the new speed within about a second, and until then
 /// frames run over. Cutting the aim after 2 consecutive frames over ends the run sooner
-/// (measured: 4 frames over 1.1 × target after the step against 6 without); once the
+/// (measured: 4 frames over 1.1 × target after the step against 7–8 without); once the
 /// speed is learned the cut has faded and the aim is where it is without it (within 3%).
 /// Fails when the cut never acts.
 #[test]
