@@ -8,7 +8,8 @@
 #   scripts/shimmer.sh
 #
 # Override with TREES (default: the ecosystem's), PATH_NAME, HOLD (the path's frame), TARGETS (ms), CONFIGS
-# (`name:flags`, flags comma-separated), RUNS and OUT. Prints a Markdown table.
+# (`name:flags`, flags comma-separated), RUNS, OUT and LAB (a built sherwood-lab to run
+# instead of building this tree's, to compare builds). Prints a Markdown table.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -21,8 +22,11 @@ RUNS=${RUNS:-3}
 OUT=${OUT:-results/shimmer}
 mkdir -p "$OUT"
 target_dir=${CARGO_TARGET_DIR:-target}
-cargo build --release --bin sherwood-lab
-lab="$target_dir/release/sherwood-lab"
+lab=${LAB:-}
+if [[ -z "$lab" ]]; then
+    cargo build --release --bin sherwood-lab
+    lab="$target_dir/release/sherwood-lab"
+fi
 frames=$(seq -s, 60 75)
 trees=()
 [[ -n "$TREES" ]] && trees=(--trees "$TREES")

@@ -150,7 +150,7 @@ pub(super) fn aim(
     Aim {
         work: work * calibration.overrun.factor(),
         period,
-        cut: calibration.overrun.just_cut(),
+        cut: calibration.overrun.take_cut(),
     }
 }
 

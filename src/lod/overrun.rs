@@ -48,7 +48,7 @@ pub(crate) struct OverrunReaction {
     run_ratio: f32,
     /// The cut in force, as a log factor (≥ 0).
     cut: f32,
-    /// The cut was raised by the latest frame observed.
+    /// The cut was raised since [`take_cut`](Self::take_cut) last said so.
     fresh: bool,
 }
 
@@ -65,7 +65,6 @@ impl OverrunReaction {
         interval: f32,
         fade_seconds: f32,
     ) {
-        self.fresh = false;
         if interval.is_finite() && interval > 0.0 && fade_seconds > 0.0 {
             self.cut *= (-interval / fade_seconds).exp();
         }
@@ -96,10 +95,10 @@ impl OverrunReaction {
         (-self.cut.max(0.0)).exp()
     }
 
-    /// Whether the latest frame observed raised the cut: a still scene's kept selection
-    /// is then handed out anew.
-    pub(crate) fn just_cut(&self) -> bool {
-        self.fresh
+    /// Whether a frame observed since the last call raised the cut: a still scene's
+    /// kept selection is then handed out anew (once).
+    pub(crate) fn take_cut(&mut self) -> bool {
+        std::mem::take(&mut self.fresh)
     }
 }
 
@@ -119,11 +118,12 @@ mod tests {
         observe(&mut r, OverrunCut::AFTER_TWO, 0.12);
         assert_eq!(r.factor(), 1.0, "one frame over does not cut");
         observe(&mut r, OverrunCut::AFTER_TWO, 0.135);
-        assert!(r.just_cut());
+        assert!(r.take_cut());
+        assert!(!r.take_cut(), "a cut is taken once");
         assert!((r.factor() - 0.09 / 0.12).abs() < 1e-5, "{}", r.factor());
         let first = r.factor();
         observe(&mut r, OverrunCut::AFTER_TWO, 0.08);
-        assert!(!r.just_cut());
+        assert!(!r.take_cut());
         assert!(r.factor() > first && r.factor() < 1.0, "{}", r.factor());
         for _ in 0..30 {
             observe(&mut r, OverrunCut::AFTER_TWO, 0.08);

@@ -720,12 +720,20 @@ fn groups_with_leaves<'a>(
 }
 
 /// The cost of one group's cheapest drawing by `method`: one far leaf as triangles (TC)
-/// or one far point at the largest size for the group (TCLOD); 0 for the methods that
-/// take no time.
+/// or, with TCLOD, one far point at the largest size for the group or one far leaf as
+/// triangles, whichever is cheaper ([`tclod_choice`]); 0 for the methods that take no
+/// time.
 fn group_floor(method: LeafMethod, costs: &PrimitiveCosts, area: f32, triangle_leaf: f32) -> f32 {
     match method {
         LeafMethod::Tc => triangle_leaf,
-        LeafMethod::Tclod(sizes) => costs.points(largest_point(area, 1, sizes), 1),
+        LeafMethod::Tclod(sizes) => {
+            let point = costs.points(largest_point(area, 1, sizes), 1);
+            if triangle_leaf > 0.0 {
+                point.min(triangle_leaf)
+            } else {
+                point
+            }
+        }
         LeafMethod::Static(_) | LeafMethod::Full => 0.0,
     }
 }
@@ -930,17 +938,35 @@ fn tclod_choice(
     if points.0 == TclodChoice::Full || triangle_leaf <= 0.0 {
         return points;
     }
-    let affordable = (time / triangle_leaf).min(n as f32) as u32;
-    let triangles = TclodChoice::Triangles(affordable);
-    if affordable >= groups.max(1) && triangles.shown(n, area) >= points.0.shown(n, area) {
-        let cost = triangle_leaf * affordable as f32;
-        return (
-            triangles,
+    let affordable = (time * (1.0 + 1e-6) / triangle_leaf).min(n as f32) as u32;
+    let as_triangles = |count: u32| {
+        let cost = triangle_leaf * count as f32;
+        (
+            TclodChoice::Triangles(count),
             Selected {
                 cost,
+                truncated: cost > time * (1.0 + 1e-6),
                 ..Selected::default()
             },
-        );
+        )
+    };
+    let least = groups.max(1);
+    if affordable >= least
+        && TclodChoice::Triangles(affordable).shown(n, area) >= points.0.shown(n, area)
+    {
+        return as_triangles(affordable);
+    }
+    // Where even the far points do not fit and a far leaf a group as triangles costs
+    // less (points dear on this machine), the triangles are the cheaper floor: TCLOD's
+    // cheapest drawing is never dearer than TC's.
+    // (Far points are drawn at least one a group.)
+    let points_cost = match points.0 {
+        TclodChoice::FarPoints { size, count } => costs.points(size, count.max(least)),
+        _ => points.1.cost,
+    };
+    let cheapest = as_triangles(affordable.max(least));
+    if points_cost > time * (1.0 + 1e-6) && cheapest.1.cost < points_cost {
+        return cheapest;
     }
     points
 }
@@ -974,6 +1000,12 @@ fn points_choice(
     // (The whole cost, and its points' part.)
     let split_at = |size: u32| {
         let (points, _, tris) = static_split(n, area, size);
+        // Points alone are drawn at least one a group (`leaves_at_depth`).
+        let points = if tris == 0 {
+            points.max(groups.min(n))
+        } else {
+            points
+        };
         let point_cost = costs.points(size, points);
         (point_cost + triangle_leaf * tris as f32, point_cost)
     };
@@ -1015,7 +1047,9 @@ fn points_choice(
     // overdraw it, with time another object could use.
     let covering = static_split(n, area, max).0.max(1);
     let affordable = if each > 0.0 {
-        (time / each).min(covering as f32) as u32
+        // (With the tolerance `overran` allows: a time priced as k points divides back
+        // to a hair below k.)
+        (time * (1.0 + 1e-6) / each).min(covering as f32) as u32
     } else {
         covering
     };
@@ -1112,11 +1146,13 @@ pub(crate) fn leaves_at_depth_floor(
         _ if full <= 0.0 => full,
         // A far leaf of every group.
         LeafMethod::Tc => tree.triangle_leaf * tree.groups as f32,
-        // The crown disc, or a far point of every group (all at the largest size for an
-        // average group) where that is cheaper.
+        // The crown disc where it is cheaper than drawing something of every group.
         LeafMethod::Tclod(sizes) => {
-            let groups = far_points_floor(&tree, costs, sizes);
-            crown_size(model, view, depth).map_or(groups, |size| groups.min(costs.points(size, 1)))
+            let groups = every_group_floor(&tree, costs, sizes);
+            crown_size(model, view, depth)
+                .map(|size| costs.points(size, 1))
+                .filter(|&crown| crown < groups)
+                .unwrap_or(groups)
         }
         LeafMethod::Static(_) => {
             let mut scratch = TreeDrawList::default();
@@ -1131,6 +1167,19 @@ fn far_points_floor(tree: &TreeAtDepth, costs: &PrimitiveCosts, sizes: PixelRang
     costs.points(largest_point(tree.area, tree.groups, sizes), tree.groups)
 }
 
+/// The cheapest drawing of a tree chosen as a whole that shows every group: its far
+/// points, or a far leaf of every group as triangles where that is cheaper (points dear
+/// on this machine; [`tclod_choice`]).
+fn every_group_floor(tree: &TreeAtDepth, costs: &PrimitiveCosts, sizes: PixelRange) -> f32 {
+    let points = far_points_floor(tree, costs, sizes);
+    let triangles = tree.triangle_leaf * tree.groups as f32;
+    if triangles > 0.0 {
+        points.min(triangles)
+    } else {
+        points
+    }
+}
+
 /// The point size of `model`'s [crown](TreeModel::crown) disc at `depth`: the side of a
 /// square of the crown's projected area (a point of size `s` covers `s²` pixels, round or
 /// not). `None` when the model has no crown or the disc would be larger than the largest
@@ -1143,7 +1192,7 @@ fn crown_size(model: &TreeModel, view: &TreeView, depth: f32) -> Option<u32> {
 }
 
 /// TCLOD's crown disc for a tree chosen as a whole, written, when `time` does not pay for
-/// a far point of every group and the disc costs less: one point covering the crown, the
+/// something of every group ([`every_group_floor`]) and the disc costs less: one point covering the crown, the
 /// cheapest drawing that still shows where all its leaves are (issue #42).
 fn crown_choice(
     model: &TreeModel,
@@ -1156,8 +1205,8 @@ fn crown_choice(
 ) -> Option<Selected> {
     let size = crown_size(model, view, tree.depth)?;
     let cost = costs.points(size, 1);
-    let far_points = far_points_floor(tree, costs, sizes);
-    if time >= far_points || cost >= far_points {
+    let every_group = every_group_floor(tree, costs, sizes);
+    if time >= every_group || cost >= every_group {
         return None;
     }
     let leaf = model.crown_leaf();

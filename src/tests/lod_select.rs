@@ -360,7 +360,7 @@ fn a_far_tree_chosen_whole_matches_its_groups_chosen_one_by_one() {
     let costs = PrimitiveCosts::from_calibration(&Calibration::default(), 1.0);
     let groups_count = model.leaf_groups.len() as u32;
     let (mut single_size_checks, mut far_points_checks, mut crown_checks) = (0, 0, 0);
-    for depth in [40.0, 150.0, 600.0] {
+    for depth in [40.0, 150.0, 300.0, 600.0] {
         let v = view(depth);
         let g = groups(&model, depth);
         for method in [
