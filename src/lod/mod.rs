@@ -58,11 +58,11 @@ pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
 pub use group_impostors::GroupImpostors;
 #[cfg(test)]
 pub(crate) use group_impostors::{GROUP_REBUILD_SECS, GroupImpostorOf};
+pub use overrun::OverrunCut;
 pub use settings::{
     BenefitReport, FrameBudget, FrameGoal, GroupImpostorSettings, LodMode, StrategyKind,
 };
 pub(crate) use settings::{RUNG_FRACTIONS, TARGET_WARNING_SECS};
-pub use overrun::OverrunCut;
 pub use steady::SteadySelection;
 pub(crate) use strategy::HierarchicalCut;
 

@@ -849,7 +849,13 @@ fn cutting_after_two_frames_over_ends_a_slowdown_s_run_of_long_frames_sooner() {
             let slower = if k >= step { 0.4f32.ln_1p() } else { 0.0 };
             slower + 0.02 * normal(&mut uniform)
         };
-        frames_reacting(FrameGoal::default(), SteadySelection::default(), cut, 700, scatter)
+        frames_reacting(
+            FrameGoal::default(),
+            SteadySelection::default(),
+            cut,
+            700,
+            scatter,
+        )
     };
     let (plain, cut) = (run(OverrunCut::OFF), run(OverrunCut::AFTER_TWO));
     let after = |frames: &[(bool, f32, f32)]| {
