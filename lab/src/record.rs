@@ -226,6 +226,11 @@ pub fn csv_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
     Ok(paths)
 }
 
+/// Records written before the overrun cut had none.
+fn no_cut() -> f32 {
+    1.0
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -344,9 +349,4 @@ pub(crate) mod tests {
         assert!(e.contains("line: 3") || e.contains("line 3"), "{e}");
         std::fs::remove_file(file).unwrap();
     }
-}
-
-/// Records written before the overrun cut had none.
-fn no_cut() -> f32 {
-    1.0
 }

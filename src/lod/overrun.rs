@@ -69,7 +69,8 @@ impl OverrunReaction {
             self.cut *= (-interval / fade_seconds).exp();
         }
         let ratio = (measured / predicted).ln();
-        if settings.after_frames == 0 || !ratio.is_finite() || !(measured > limit) {
+        let over = measured.partial_cmp(&limit) == Some(std::cmp::Ordering::Greater);
+        if settings.after_frames == 0 || !ratio.is_finite() || !over {
             self.run = 0;
             return;
         }
