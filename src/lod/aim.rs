@@ -20,8 +20,10 @@ pub(super) struct Aim {
     pub(super) work: f32,
     /// The refresh period under vsync, seconds.
     pub(super) period: Option<f32>,
-    /// The aim was cut after frames over the goal's limit ([`OverrunCut`]): a still
-    /// scene's kept selection is handed out anew.
+    /// The factor the overrun cut put on `work` ([`OverrunCut`]; 1: none).
+    pub(super) overrun_factor: f32,
+    /// The cut was raised for this frame: a still scene's kept selection is handed out
+    /// anew.
     pub(super) cut: bool,
 }
 
@@ -78,11 +80,6 @@ impl AimCalibration {
             *calibration = Some(QuantileCalibration::new(share));
         }
         calibration.map_or(1.0, |c| c.factor(spread))
-    }
-
-    /// The factor the overrun cut puts on the aim (1: none).
-    pub(super) fn overrun_factor(&self) -> f32 {
-        self.overrun.factor()
     }
 
     /// The offsets the calibrations learned, as log factors: the tail goal's and the
@@ -147,9 +144,11 @@ pub(super) fn aim(
         calibration.aimed.pop_front();
     }
     calibration.aimed.push_back((frame, factors));
+    let overrun_factor = calibration.overrun.factor();
     Aim {
-        work: work * calibration.overrun.factor(),
+        work: work * overrun_factor,
         period,
+        overrun_factor,
         cut: calibration.overrun.take_cut(),
     }
 }

@@ -373,8 +373,6 @@ struct FrameTimes {
     aim: super::aim::Aim,
     /// [`LodDiagnostics::tail_offsets`].
     tail_offsets: [f32; 2],
-    /// [`LodDiagnostics::overrun_factor`].
-    overrun_factor: f32,
     /// The rendering time left for the trees and ladders.
     rendering: f32,
     /// No rendering time is left in the target (in a time-critical mode).
@@ -430,7 +428,6 @@ fn frame_times(
         target,
         aim,
         tail_offsets: pacing.calibration.offsets(),
-        overrun_factor: pacing.calibration.overrun_factor(),
         rendering: (available - fixed - app_meshes.cost).max(0.0),
         target_below_logic: available <= 0.0 && budget.mode.is_time_critical(),
     }
@@ -862,7 +859,7 @@ fn frame_diagnostics(
         vsync_period_ms: ms(times.aim.period.unwrap_or(0.0)),
         frame_spread: cost_model.frame_spread().sigma(),
         tail_offsets: times.tail_offsets,
-        overrun_factor: times.overrun_factor,
+        overrun_factor: times.aim.overrun_factor,
         measured_work_ms: shown.work_ms,
         measured_gpu_ms: shown.gpu_ms,
         measured_waited_ms: shown.waited_ms,

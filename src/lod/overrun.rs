@@ -80,11 +80,11 @@ impl OverrunReaction {
             self.run_ratio.min(ratio)
         };
         self.run += 1;
-        if self.run >= settings.after_frames && self.run_ratio > self.cut {
-            self.cut = self.run_ratio;
-            self.fresh = true;
-        }
         if self.run >= settings.after_frames {
+            if self.run_ratio > self.cut {
+                self.cut = self.run_ratio;
+                self.fresh = true;
+            }
             // A new run counts from here: one long run cuts again only after as many
             // more frames over.
             self.run = 0;

@@ -726,14 +726,10 @@ fn groups_with_leaves<'a>(
 fn group_floor(method: LeafMethod, costs: &PrimitiveCosts, area: f32, triangle_leaf: f32) -> f32 {
     match method {
         LeafMethod::Tc => triangle_leaf,
-        LeafMethod::Tclod(sizes) => {
-            let point = costs.points(largest_point(area, 1, sizes), 1);
-            if triangle_leaf > 0.0 {
-                point.min(triangle_leaf)
-            } else {
-                point
-            }
-        }
+        LeafMethod::Tclod(sizes) => cheaper_floor(
+            costs.points(largest_point(area, 1, sizes), 1),
+            triangle_leaf,
+        ),
         LeafMethod::Static(_) | LeafMethod::Full => 0.0,
     }
 }
@@ -741,7 +737,18 @@ fn group_floor(method: LeafMethod, costs: &PrimitiveCosts, area: f32, triangle_l
 /// Whether a search by `method` that drew `cost` with `time` overran it (drew its
 /// cheapest, which did not fit).
 fn overran(method: LeafMethod, cost: f32, time: f32) -> bool {
-    matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_)) && cost > time * (1.0 + 1e-6)
+    matches!(method, LeafMethod::Tc | LeafMethod::Tclod(_)) && exceeds(cost, time)
+}
+
+/// Whether `cost` is more than `time`, beyond the rounding of prices.
+fn exceeds(cost: f32, time: f32) -> bool {
+    cost > time * (1.0 + 1e-6)
+}
+
+/// How many primitives of `each` seconds `time` pays for, with the rounding [`exceeds`]
+/// allows: a time priced as `k` of them divides back to `k`, not a hair below.
+fn affordable_count(time: f32, each: f32) -> f32 {
+    time * (1.0 + 1e-6) / each
 }
 
 /// Per visible group, its leaf count and the time of one of its leaves as triangles.
@@ -938,14 +945,14 @@ fn tclod_choice(
     if points.0 == TclodChoice::Full || triangle_leaf <= 0.0 {
         return points;
     }
-    let affordable = (time * (1.0 + 1e-6) / triangle_leaf).min(n as f32) as u32;
+    let affordable = affordable_count(time, triangle_leaf).min(n as f32) as u32;
     let as_triangles = |count: u32| {
         let cost = triangle_leaf * count as f32;
         (
             TclodChoice::Triangles(count),
             Selected {
                 cost,
-                truncated: cost > time * (1.0 + 1e-6),
+                truncated: exceeds(cost, time),
                 ..Selected::default()
             },
         )
@@ -965,7 +972,7 @@ fn tclod_choice(
         _ => points.1.cost,
     };
     let cheapest = as_triangles(affordable.max(least));
-    if points_cost > time * (1.0 + 1e-6) && cheapest.1.cost < points_cost {
+    if exceeds(points_cost, time) && cheapest.1.cost < points_cost {
         return cheapest;
     }
     points
@@ -1047,9 +1054,7 @@ fn points_choice(
     // overdraw it, with time another object could use.
     let covering = static_split(n, area, max).0.max(1);
     let affordable = if each > 0.0 {
-        // (With the tolerance `overran` allows: a time priced as k points divides back
-        // to a hair below k.)
-        (time * (1.0 + 1e-6) / each).min(covering as f32) as u32
+        affordable_count(time, each).min(covering as f32) as u32
     } else {
         covering
     };
@@ -1171,8 +1176,15 @@ fn far_points_floor(tree: &TreeAtDepth, costs: &PrimitiveCosts, sizes: PixelRang
 /// points, or a far leaf of every group as triangles where that is cheaper (points dear
 /// on this machine; [`tclod_choice`]).
 fn every_group_floor(tree: &TreeAtDepth, costs: &PrimitiveCosts, sizes: PixelRange) -> f32 {
-    let points = far_points_floor(tree, costs, sizes);
-    let triangles = tree.triangle_leaf * tree.groups as f32;
+    cheaper_floor(
+        far_points_floor(tree, costs, sizes),
+        tree.triangle_leaf * tree.groups as f32,
+    )
+}
+
+/// TCLOD's floor from its far `points` and TC's far leaves as `triangles` (the same
+/// groups): the cheaper, the triangles only when they are priced.
+fn cheaper_floor(points: f32, triangles: f32) -> f32 {
     if triangles > 0.0 {
         points.min(triangles)
     } else {
@@ -1192,8 +1204,9 @@ fn crown_size(model: &TreeModel, view: &TreeView, depth: f32) -> Option<u32> {
 }
 
 /// TCLOD's crown disc for a tree chosen as a whole, written, when `time` does not pay for
-/// something of every group ([`every_group_floor`]) and the disc costs less: one point covering the crown, the
-/// cheapest drawing that still shows where all its leaves are (issue #42).
+/// something of every group ([`every_group_floor`]) and the disc costs less: one point
+/// covering the crown, the cheapest drawing that still shows where all its leaves are
+/// (issue #42).
 fn crown_choice(
     model: &TreeModel,
     view: &TreeView,
@@ -1214,7 +1227,7 @@ fn crown_choice(
     Some(Selected {
         cost,
         points: cost,
-        truncated: cost > time * (1.0 + 1e-6),
+        truncated: exceeds(cost, time),
         ..Selected::default()
     })
 }
