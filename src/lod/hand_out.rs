@@ -258,12 +258,13 @@ impl KeptHandOut {
     }
 
     /// This frame's fresh hand-out (`lists`, `drawn`, `outcome`) for the still scene
-    /// this one was kept for, blended with it: the trees whose change the price can do
-    /// without go back to what they drew ([`steady::restore_least_changed`], within half
-    /// the steadiness band around `rendering`). Group impostors are not blended.
+    /// this one was kept for, blended with it: every tree draws what it drew, but for the
+    /// fewest whose fresh drawing takes the price within half the steadiness band around
+    /// `rendering` ([`steady::change_fewest`]). Group impostors are not blended.
     fn blend_into(&self, fresh: Fresh, state: &mut BlendScratch, scales: FamilyScales) {
         let Fresh {
             objects,
+            values,
             lists,
             drawn,
             outcome,
@@ -290,24 +291,27 @@ impl KeptHandOut {
         };
         state.changes.clear();
         state.changes.resize(lists.len(), (0.0, 0.0));
+        state.shown.clear();
+        state.shown.resize(lists.len(), 0.0);
         for (i, tree) in parts() {
             state.changes[tree].0 += self.buffers.drawn[i].cost * ratio;
             state.changes[tree].1 += drawn[i].cost;
+            state.shown[tree] += values.get(i).copied().unwrap_or(0.0);
         }
-        let blended = steady::restore_least_changed(
+        let blended = steady::change_fewest(
             &state.changes,
-            outcome.stats.used,
+            &state.shown,
             steady.blend_band(rendering),
             &mut state.order,
-            &mut state.restore,
+            &mut state.keep,
         );
         for (tree, list) in lists.iter_mut().enumerate() {
-            if state.restore[tree] && *list != self.buffers.lists[tree] {
+            if state.keep[tree] && *list != self.buffers.lists[tree] {
                 list.clone_from(&self.buffers.lists[tree]);
             }
         }
         for (i, tree) in parts() {
-            if state.restore[tree] {
+            if state.keep[tree] {
                 let kept = steady::scaled(self.buffers.drawn[i], ratio);
                 outcome.drawn = steady::shifted(outcome.drawn, drawn[i], kept);
                 drawn[i] = kept;
@@ -323,6 +327,8 @@ impl KeptHandOut {
 /// A fresh hand-out, to blend with a kept one.
 struct Fresh<'a> {
     objects: &'a [Object],
+    /// Per object, its value.
+    values: &'a [f32],
     lists: &'a mut [TreeDrawList],
     drawn: &'a mut [Selected],
     outcome: &'a mut Outcome,
@@ -330,12 +336,14 @@ struct Fresh<'a> {
     steady: SteadySelection,
 }
 
-/// The blend's scratch: per tree the kept and the fresh cost, an order, what to restore.
+/// The blend's scratch: per tree the kept and the fresh cost and its value, an order,
+/// which trees keep what they drew.
 #[derive(Default)]
 struct BlendScratch {
     changes: Vec<(f32, f32)>,
+    shown: Vec<f32>,
     order: Vec<u32>,
-    restore: Vec<bool>,
+    keep: Vec<bool>,
 }
 
 /// Per visible object, its entity, part and value.
@@ -516,6 +524,7 @@ pub(super) fn hand_out_time(
     {
         let fresh = Fresh {
             objects: &visible.objects,
+            values: &visible.values,
             lists: &mut chosen.trees,
             drawn: &mut state.drawn,
             outcome: &mut outcome,

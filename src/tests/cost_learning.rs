@@ -967,6 +967,7 @@ fn a_still_camera_keeps_its_selection_under_noisy_measurements() {
     let (every_frame, ..) = list_changes_at_a_still_camera(SteadySelection::OFF, frames);
     let (steady, mut app, size) =
         list_changes_at_a_still_camera(SteadySelection::KEEP_WHILE_STILL, frames);
+    eprintln!("lists changed in {steady} of {frames} frames kept, {every_frame} handed out anew");
     assert!(
         every_frame >= frames / 2,
         "without steadiness the noise changed only {every_frame} of {frames} frames"
