@@ -672,8 +672,8 @@ fn mean_frame(frames: &[(bool, f32, f32)]) -> f32 {
 /// scatter is learned, on a quiet and on a noisy machine, when every frame is handed out
 /// anew; the paper's mean goal, aimed at the target itself, leaves more over on the
 /// noisy one. A still scene that keeps its selection (the default) keeps the promise
-/// too, at most 7% over, and gives up at most its band's 3% of the frame time for it (a
-/// kept selection may sit below the aim, and then fewer frames are over).
+/// too, at most 7% over, and gives up at most its band below (8%) of the frame time for
+/// it (a kept selection may sit below the aim, and then fewer frames are over).
 #[test]
 fn the_tail_goal_keeps_its_share_of_frames_over_the_slack() {
     for sigma in [0.03, 0.10] {
@@ -701,8 +701,11 @@ fn the_tail_goal_keeps_its_share_of_frames_over_the_slack() {
             "σ = {sigma}, kept: {:.1}% over, {mean:.2} ms against {fresh:.2} ms",
             share * 100.0
         );
+        // A still scene takes up time left unused only past its band below: it may give
+        // up that much of the detail, no more.
+        let below = SteadySelection::default().below;
         assert!(
-            share <= 0.07 && mean >= 0.97 * fresh,
+            share <= 0.07 && mean >= (1.0 - below) * fresh,
             "σ = {sigma}, a still scene kept: {:.1}% of frames over 1.1 × target, \
              {mean:.2} ms a frame against {fresh:.2} ms handed out every frame",
             share * 100.0

@@ -530,8 +530,11 @@ fn a_step_in_the_app_s_logic_is_in_the_same_frame_s_budget() {
     let step = std::time::Duration::from_millis(60);
     app.world_mut().resource_mut::<BusyLogic>().0 = step;
     let after = frame(&mut app, with(LodMode::Tclod, 200.0));
+    // The learned logic cannot reach the step in one frame: a prediction of at least the
+    // step is the step measured. (Not compared with the frame before's, whose logic other
+    // tests running beside this one can lengthen.)
     assert!(
-        after.logic_so_far_ms >= 60.0 && after.logic_ms >= before.logic_ms + 50.0,
+        after.logic_so_far_ms >= 60.0 && after.logic_ms >= 60.0,
         "the step's frame predicted {} ms of logic ({} ms so far), the frame before {} ms",
         after.logic_ms,
         after.logic_so_far_ms,

@@ -13,9 +13,6 @@ pub(super) struct RobinHoodStrategy {
     robin_hood: RobinHood,
     /// Per object, the cost of its cheapest representation.
     floors: Vec<f32>,
-    /// What each object chose, by object (a residue pass offers an object more time and
-    /// replaces its earlier choice).
-    choices: Vec<Selected>,
 }
 
 impl Strategy for RobinHoodStrategy {
@@ -34,9 +31,8 @@ impl Strategy for RobinHoodStrategy {
         self.floors.clear();
         self.floors
             .extend((0..objects.len()).map(|i| search.floor(i)));
-        let choices = &mut self.choices;
-        choices.clear();
-        choices.resize(objects.len(), Selected::default());
+        // Only each object's last choice (a residue pass offers more time and replaces
+        // it) is drawn, priced and learned from: `draw.drawn` holds it.
         let stats = self.robin_hood.distribute_with(
             values,
             complexities,
@@ -44,8 +40,6 @@ impl Strategy for RobinHoodStrategy {
             *rendering,
             |i, given| {
                 let (chosen, mesh_level) = draw.draw(search, i, given);
-                // Only the last choice is drawn, priced and learned from.
-                choices[i] = chosen;
                 // A tree part's level: 0 at full detail, nothing more to buy.
                 let level = mesh_level.unwrap_or(u32::from(!chosen.full));
                 Fit {
@@ -56,8 +50,9 @@ impl Strategy for RobinHoodStrategy {
             },
             allocations,
         );
+        let choices = &*draw.drawn;
         let mut outcome = Outcome::of(stats);
-        for &chosen in choices.iter() {
+        for &chosen in choices {
             outcome.count(chosen);
         }
         if let Some(parts) = tree_parts.as_deref_mut() {
