@@ -15,7 +15,7 @@ use super::search::{self, Choices, ObjectSearch};
 use super::select::{PrimitiveCosts, Selected};
 use super::steady;
 use super::strategy::{self, HandOut, Outcome, Scene, Strategies};
-use super::value::{FarDecisions, Object, Part, VisibleObjects};
+use super::value::{FarDecisions, Object, Part, VisibleObjects, VisibleTree};
 use super::{
     AppMeshLoad, BenefitReport, FrameBudget, HierarchicalCut, LadderEntry, LadderObjects,
     LodDiagnostics, SteadySelection, StrategyKind,
@@ -78,7 +78,6 @@ struct FreshHandOut<'a> {
     costs: &'a PrimitiveCosts,
     scales: FamilyScales,
     score: Option<(f32, f32)>,
-    lists: &'a Vec<TreeDrawList>,
     rendering: f32,
 }
 
@@ -96,7 +95,6 @@ impl BudgetState {
             costs,
             scales,
             score,
-            lists: fresh_lists,
             rendering,
         } = fresh;
         let fit = budget.steady.fit(outcome.stats.used, rendering);
@@ -108,10 +106,6 @@ impl BudgetState {
             self.spare = buffers;
             return;
         };
-        // Copied into the last kept hand-out's allocations: a moving camera remembers
-        // every frame's hand-out.
-        buffers.lists.clone_from(fresh_lists);
-        buffers.drawn.clone_from(&self.drawn);
         buffers.objects.clear();
         buffers
             .objects
@@ -164,14 +158,14 @@ struct KeptHandOut {
     buffers: KeptBuffers,
 }
 
-/// What a kept hand-out holds per object, tree and ladder.
+/// What a kept hand-out holds per object and ladder. Its trees' lists are the ones the
+/// `DrawLists` stage wrote, and what each object drew is [`BudgetState::drawn`]: both stay
+/// as they are while the hand-out is kept, and are read only when a still scene hands out
+/// anew (a moving camera, which never reuses its hand-out, copies nothing).
 #[derive(Default)]
 struct KeptBuffers {
     /// Per visible object, its entity, part and value.
     objects: Vec<(Entity, Part, f32)>,
-    /// Per visible tree, its list; per object, what it drew (at the hand-out's costs).
-    lists: Vec<TreeDrawList>,
-    drawn: Vec<Selected>,
     mesh_levels: Vec<Option<u32>>,
 }
 
@@ -260,10 +254,18 @@ impl KeptHandOut {
     /// This frame's fresh hand-out (`lists`, `drawn`, `outcome`) for the still scene
     /// this one was kept for, blended with it: every tree draws what it drew, but for the
     /// fewest whose fresh drawing takes the price within half the steadiness band around
-    /// `rendering` ([`steady::change_fewest`]). Group impostors are not blended.
-    fn blend_into(&self, fresh: Fresh, state: &mut BlendScratch, scales: FamilyScales) {
+    /// `rendering` ([`steady::change_fewest`]). What a tree drew is its list as written
+    /// (`shown`), what an object drew `state.kept_drawn`. Group impostors are not blended.
+    fn blend_into(
+        &self,
+        fresh: Fresh,
+        shown: &Query<&TreeDrawList>,
+        state: &mut BlendScratch,
+        scales: FamilyScales,
+    ) {
         let Fresh {
             objects,
+            trees,
             values,
             lists,
             drawn,
@@ -274,8 +276,8 @@ impl KeptHandOut {
         let ratio = self.repriced(scales).stats.used / self.outcome.stats.used;
         if outcome.impostors_drawn > 0
             || self.outcome.impostors_drawn > 0
-            || self.buffers.lists.len() != lists.len()
-            || self.buffers.drawn.len() != drawn.len()
+            || trees.len() > lists.len()
+            || state.kept_drawn.len() != drawn.len()
             || objects.len() != drawn.len()
             || !(ratio.is_finite() && ratio > 0.0)
         {
@@ -294,7 +296,7 @@ impl KeptHandOut {
         state.shown.clear();
         state.shown.resize(lists.len(), 0.0);
         for (i, tree) in parts() {
-            state.changes[tree].0 += self.buffers.drawn[i].cost * ratio;
+            state.changes[tree].0 += state.kept_drawn[i].cost * ratio;
             state.changes[tree].1 += drawn[i].cost;
             state.shown[tree] += values.get(i).copied().unwrap_or(0.0);
         }
@@ -305,14 +307,17 @@ impl KeptHandOut {
             &mut state.order,
             &mut state.keep,
         );
-        for (tree, list) in lists.iter_mut().enumerate() {
-            if state.keep[tree] && *list != self.buffers.lists[tree] {
-                list.clone_from(&self.buffers.lists[tree]);
+        for ((keep, tree), list) in state.keep.iter_mut().zip(trees).zip(lists.iter_mut()) {
+            match shown.get(tree.entity) {
+                Ok(kept) if *keep && list != kept => list.clone_from(kept),
+                // A tree whose list is gone keeps its fresh one.
+                Err(_) => *keep = false,
+                Ok(_) => {}
             }
         }
         for (i, tree) in parts() {
             if state.keep[tree] {
-                let kept = steady::scaled(self.buffers.drawn[i], ratio);
+                let kept = steady::scaled(state.kept_drawn[i], ratio);
                 outcome.drawn = steady::shifted(outcome.drawn, drawn[i], kept);
                 drawn[i] = kept;
             }
@@ -327,6 +332,7 @@ impl KeptHandOut {
 /// A fresh hand-out, to blend with a kept one.
 struct Fresh<'a> {
     objects: &'a [Object],
+    trees: &'a [VisibleTree],
     /// Per object, its value.
     values: &'a [f32],
     lists: &'a mut [TreeDrawList],
@@ -336,10 +342,12 @@ struct Fresh<'a> {
     steady: SteadySelection,
 }
 
-/// The blend's scratch: per tree the kept and the fresh cost and its value, an order,
-/// which trees keep what they drew.
+/// The blend's scratch: what each object of the kept hand-out drew (copied before the
+/// fresh hand-out overwrites it); per tree the kept and the fresh cost and its value, an
+/// order, which trees keep what they drew.
 #[derive(Default)]
 struct BlendScratch {
+    kept_drawn: Vec<Selected>,
     changes: Vec<(f32, f32)>,
     shown: Vec<f32>,
     order: Vec<u32>,
@@ -456,6 +464,7 @@ pub(super) fn hand_out_time(
     report: Res<BenefitReport>,
     mut boxes: Boxes,
     mut pacing: Pacing,
+    shown: Query<&TreeDrawList>,
     mut commands: Commands,
 ) {
     let start = Instant::now();
@@ -497,6 +506,10 @@ pub(super) fn hand_out_time(
             (outcome, score, Some(selection))
         }
         None => {
+            if still && budget.steady.gradual {
+                // The kept hand-out's choices, before the fresh one overwrites them.
+                state.blend.kept_drawn.clone_from(&state.drawn);
+            }
             let fresh = FreshInputs {
                 budget: &budget,
                 visible: &visible,
@@ -524,6 +537,7 @@ pub(super) fn hand_out_time(
     {
         let fresh = Fresh {
             objects: &visible.objects,
+            trees: &visible.trees,
             values: &visible.values,
             lists: &mut chosen.trees,
             drawn: &mut state.drawn,
@@ -531,7 +545,7 @@ pub(super) fn hand_out_time(
             rendering,
             steady: budget.steady,
         };
-        kept.blend_into(fresh, &mut state.blend, scales);
+        kept.blend_into(fresh, &shown, &mut state.blend, scales);
     }
     let selection = selection.unwrap_or_else(|| {
         Selection::of(
@@ -555,7 +569,6 @@ pub(super) fn hand_out_time(
                 costs: &costs,
                 scales,
                 score: score.map(|(benefit, bound, _)| (benefit, bound)),
-                lists: &chosen.trees,
                 rendering,
             },
             may_keep,
