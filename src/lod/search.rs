@@ -148,7 +148,12 @@ impl ObjectSearch<'_> {
     ) -> (Rungs, [f32; RUNG_FRACTIONS.len()]) {
         let full = self.full_cost(i, scratch);
         let rungs = rungs(value, full, |fraction| {
-            self.search(i, full * fraction, scratch).cost
+            // The top rung is the full detail just searched.
+            if fraction >= 1.0 {
+                full
+            } else {
+                self.search(i, full * fraction, scratch).cost
+            }
         });
         (rungs, RUNG_FRACTIONS.map(|fraction| full * fraction))
     }

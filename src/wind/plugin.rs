@@ -195,7 +195,7 @@ struct InstanceWind {
     /// Per representative level, how far its rings land from its own per pixel of motion
     /// when it borrows that level's representative (infinite: it cannot).
     borrow_errors: [f32; LEVELS],
-    /// Per level, its representative's block in [`WindCache::shared_blocks`], or
+    /// Per level, its representative's block in the representatives' blocks ([`Representatives`]), or
     /// [`UNRESOLVED`] until it first borrows at that level.
     blocks: [u32; LEVELS],
 }
@@ -246,10 +246,15 @@ struct WindCache {
     springs: Vec<Option<SetThisFrame>>,
     frame: u32,
     scratch: Vec<Vec3A>,
-    /// The representatives' blocks.
-    shared_blocks: Vec<SharedBlock>,
-    /// Index into `shared_blocks` by rig and bin.
-    shared_index: HashMap<(u32, SwayBin), u32>,
+    representatives: Representatives,
+}
+
+/// The blocks of offsets of the representatives far trees borrow.
+#[derive(Default)]
+struct Representatives {
+    blocks: Vec<SharedBlock>,
+    /// Index into `blocks` by rig and bin.
+    index: HashMap<(u32, SwayBin), u32>,
 }
 
 /// A representative tree's block of offsets, which the trees of its bin borrow.
@@ -276,8 +281,8 @@ impl WindCache {
         table: &mut RingOffsetTable,
     ) {
         self.instances.clear();
-        self.shared_blocks.clear();
-        self.shared_index.clear();
+        self.representatives.blocks.clear();
+        self.representatives.index.clear();
         table.reset(instances.len());
         self.instances
             .extend((0..instances.len()).map(|i| instance_wind(instances, models, i)));
@@ -360,11 +365,11 @@ impl WindCache {
                 come_to_rest(instance, table, moved, i);
             }
         }
-        for block in &self.shared_blocks {
+        for block in &self.representatives.blocks {
             table.release_shared_block(block.start, block.len);
         }
-        self.shared_blocks.clear();
-        self.shared_index.clear();
+        self.representatives.blocks.clear();
+        self.representatives.index.clear();
     }
 }
 
@@ -487,35 +492,26 @@ fn move_rings(
             motion_pixels,
             settings.shared_sway_pixels,
         ) {
-            let b = shared_block(
-                &mut cache.shared_blocks,
-                &mut cache.shared_index,
-                table,
-                instance,
+            let sway = Borrowed {
                 level,
-            ) as usize;
-            let block = &mut cache.shared_blocks[b];
-            let at = BlockUse {
-                index: b,
+                rig,
+                displacements,
                 frame,
                 interval,
             };
-            let Some(computed) = keep_up(
-                block,
-                at,
-                rig,
-                displacements,
+            let Some(computed) = borrow_sway(
+                &mut cache.representatives,
                 &mut cache.scratch,
                 table,
                 moved,
+                i,
+                instance,
+                sway,
             ) else {
                 come_to_rest(instance, table, moved, i);
                 continue;
             };
             counts.shared_updated += u32::from(computed);
-            table.share(i, block.start, block.len);
-            moved.share(i, b);
-            instance.moving = true;
             counts.shared += 1;
             counts.moved += 1;
             continue;
@@ -612,6 +608,50 @@ fn refill_springs(
     }
 }
 
+/// How a borrower sways this frame: at which level it borrows, and what moves its rig.
+#[derive(Clone, Copy)]
+struct Borrowed<'a> {
+    level: usize,
+    rig: &'a WindRig,
+    displacements: &'a [Vec3],
+    frame: u32,
+    interval: u32,
+}
+
+/// Instance `i` borrows the offsets of its representative at `sway.level`, brought up to
+/// date. Whether the representative was computed this frame; `None` when its rig's
+/// offsets do not fit the block (the caller puts the instance at rest).
+fn borrow_sway(
+    representatives: &mut Representatives,
+    scratch: &mut Vec<Vec3A>,
+    table: &mut RingOffsetTable,
+    moved: &mut MovedShapes,
+    i: usize,
+    instance: &mut InstanceWind,
+    sway: Borrowed,
+) -> Option<bool> {
+    let b = shared_block(representatives, table, instance, sway.level) as usize;
+    let block = &mut representatives.blocks[b];
+    let at = BlockUse {
+        index: b,
+        frame: sway.frame,
+        interval: sway.interval,
+    };
+    let computed = keep_up(
+        block,
+        at,
+        sway.rig,
+        sway.displacements,
+        scratch,
+        table,
+        moved,
+    )?;
+    table.share(i, block.start, block.len);
+    moved.share(i, b);
+    instance.moving = true;
+    Some(computed)
+}
+
 /// Which shared block a borrower uses, on which frame, at which update interval.
 #[derive(Clone, Copy)]
 struct BlockUse {
@@ -667,14 +707,14 @@ fn keep_up(
 /// The block of `instance`'s representative at `level` (under its resolved rig), made on
 /// first use.
 fn shared_block(
-    blocks: &mut Vec<SharedBlock>,
-    index: &mut HashMap<(u32, SwayBin), u32>,
+    shared: &mut Representatives,
     table: &mut RingOffsetTable,
     instance: &mut InstanceWind,
     level: usize,
 ) -> u32 {
     if instance.blocks[level] == UNRESOLVED {
         let representative = representatives(instance.rotation, instance.scale)[level];
+        let Representatives { blocks, index } = shared;
         instance.blocks[level] = *index
             .entry((instance.rig, representative.bin))
             .or_insert_with(|| {

@@ -215,7 +215,11 @@ impl ImpostorSearch<'_> {
     ) -> SearchedRungs {
         let (best, fulls) = self.search(node, 1.0, None, scratch);
         let rungs = search::rungs(value, members_full.max(best.cost), |fraction| {
-            self.search(node, fraction, Some(fulls), scratch).0.cost
+            if fraction >= 1.0 {
+                best.cost
+            } else {
+                self.search(node, fraction, Some(fulls), scratch).0.cost
+            }
         });
         (rungs, RUNG_FRACTIONS)
     }
