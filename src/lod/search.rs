@@ -21,15 +21,26 @@ pub(super) const FULL_DETAIL_TIME: f32 = 1.0e6;
 /// full detail, best → cheapest.
 pub(super) type Rungs = [Level; RUNG_FRACTIONS.len()];
 
-/// The rungs of an object worth `value`: `cost_at(fraction)` is what its search draws
-/// with that fraction of its full detail's time (a rung never costs more than the one
-/// above it), each judged against `judged_full` (its own full detail's cost, or for a
-/// group impostor its trees').
-pub(super) fn rungs(value: f32, judged_full: f32, mut cost_at: impl FnMut(f32) -> f32) -> Rungs {
+/// The rungs of an object worth `value` whose full detail costs `full` (already
+/// searched: the top rung): `cost_at(fraction)` is what its search draws with a smaller
+/// fraction of its full detail's time (a rung never costs more than the one above it),
+/// each judged against `judged_full` (its own full detail's cost, or for a group impostor
+/// its trees').
+pub(super) fn rungs(
+    value: f32,
+    judged_full: f32,
+    full: f32,
+    mut cost_at: impl FnMut(f32) -> f32,
+) -> Rungs {
     let mut rungs = [Level::new(0.0, 0.0); RUNG_FRACTIONS.len()];
     let mut previous_cost = f32::INFINITY;
     for (rung, &fraction) in rungs.iter_mut().zip(&RUNG_FRACTIONS) {
-        let cost = cost_at(fraction).min(previous_cost);
+        let searched = if fraction >= 1.0 {
+            full
+        } else {
+            cost_at(fraction)
+        };
+        let cost = searched.min(previous_cost);
         previous_cost = cost;
         *rung = Level::new(cost, oracle::sqrt_benefit(value, judged_full, cost) as f32);
     }
@@ -147,13 +158,8 @@ impl ObjectSearch<'_> {
         scratch: &mut TreeDrawList,
     ) -> (Rungs, [f32; RUNG_FRACTIONS.len()]) {
         let full = self.full_cost(i, scratch);
-        let rungs = rungs(value, full, |fraction| {
-            // The top rung is the full detail just searched.
-            if fraction >= 1.0 {
-                full
-            } else {
-                self.search(i, full * fraction, scratch).cost
-            }
+        let rungs = rungs(value, full, full, |fraction| {
+            self.search(i, full * fraction, scratch).cost
         });
         (rungs, RUNG_FRACTIONS.map(|fraction| full * fraction))
     }

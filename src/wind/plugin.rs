@@ -195,7 +195,7 @@ struct InstanceWind {
     /// Per representative level, how far its rings land from its own per pixel of motion
     /// when it borrows that level's representative (infinite: it cannot).
     borrow_errors: [f32; LEVELS],
-    /// Per level, its representative's block in the representatives' blocks ([`Representatives`]), or
+    /// Per level, its representative's block ([`Representatives::blocks`]), or
     /// [`UNRESOLVED`] until it first borrows at that level.
     blocks: [u32; LEVELS],
 }
@@ -257,6 +257,14 @@ struct Representatives {
     index: HashMap<(u32, SwayBin), u32>,
 }
 
+impl Representatives {
+    /// Forgets every block (the caller releases their offsets first, or resets the table).
+    fn clear(&mut self) {
+        self.blocks.clear();
+        self.index.clear();
+    }
+}
+
 /// A representative tree's block of offsets, which the trees of its bin borrow.
 #[derive(Clone, Copy, Debug)]
 struct SharedBlock {
@@ -281,8 +289,7 @@ impl WindCache {
         table: &mut RingOffsetTable,
     ) {
         self.instances.clear();
-        self.representatives.blocks.clear();
-        self.representatives.index.clear();
+        self.representatives.clear();
         table.reset(instances.len());
         self.instances
             .extend((0..instances.len()).map(|i| instance_wind(instances, models, i)));
@@ -368,8 +375,7 @@ impl WindCache {
         for block in &self.representatives.blocks {
             table.release_shared_block(block.start, block.len);
         }
-        self.representatives.blocks.clear();
-        self.representatives.index.clear();
+        self.representatives.clear();
     }
 }
 

@@ -214,12 +214,9 @@ impl ImpostorSearch<'_> {
         scratch: &mut TreeDrawList,
     ) -> SearchedRungs {
         let (best, fulls) = self.search(node, 1.0, None, scratch);
-        let rungs = search::rungs(value, members_full.max(best.cost), |fraction| {
-            if fraction >= 1.0 {
-                best.cost
-            } else {
-                self.search(node, fraction, Some(fulls), scratch).0.cost
-            }
+        let judged_full = members_full.max(best.cost);
+        let rungs = search::rungs(value, judged_full, best.cost, |fraction| {
+            self.search(node, fraction, Some(fulls), scratch).0.cost
         });
         (rungs, RUNG_FRACTIONS)
     }
