@@ -229,13 +229,16 @@ impl HierarchicalFrame {
             .any(|n| self.lod.selection(n) == NodeSelection::Hidden);
         if scene_dropped {
             // Nothing fitted, not even the coarsest cut: the scene was left to Mason &
-            // Blake's imaginary empty item. Nothing visible is dropped here: draw the
-            // coarsest cut, overrunning.
+            // Blake's imaginary empty item. Nothing visible is dropped here: last frame's
+            // cut is drawn a box level coarser and at its cheapest, overrunning. Falling
+            // to the coarsest cut at once would show the forest as its root box's one
+            // group impostor after a single starved frame, and the cut would then refine
+            // again a box level a frame; a lasting starvation still gets there.
             let top: Vec<NodeId> = self.hierarchy.top_level().collect();
             outcome.cost = 0.0;
             outcome.benefit = 0.0;
             for node in top {
-                self.coarsest(node, &mut outcome);
+                self.coarser_than_last_cut(node, &mut outcome);
             }
         } else {
             for node in 0..self.hierarchy.len() as NodeId {
@@ -338,6 +341,31 @@ impl HierarchicalFrame {
                     }
                 }
             }
+        }
+    }
+
+    /// Draws `node`'s subtree as last frame's cut had it (the seed), one box level
+    /// coarser: a box opened last frame none of whose child boxes was opened is drawn as
+    /// its group impostor; the rest of the cut, at its cheapest. What the cut did not
+    /// reach, at its coarsest.
+    fn coarser_than_last_cut(&mut self, node: NodeId, outcome: &mut HierarchyOutcome) {
+        let opened =
+            |frame: &Self, n: NodeId| frame.seed.get(n as usize) == Some(&NodeSelection::Children);
+        let children = self.hierarchy.children(node).to_vec();
+        let is_group = |frame: &Self, n: NodeId| {
+            !frame.hierarchy.impostors(n).is_empty() && !frame.hierarchy.children(n).is_empty()
+        };
+        let deepest = children
+            .iter()
+            .all(|&c| !(opened(self, c) && is_group(self, c)));
+        if !opened(self, node) || children.is_empty() || (deepest && is_group(self, node)) {
+            self.coarsest(node, outcome);
+            return;
+        }
+        self.previous
+            .insert(self.keys[node as usize], NodeSelection::Children);
+        for child in children {
+            self.coarser_than_last_cut(child, outcome);
         }
     }
 
