@@ -344,10 +344,11 @@ impl HierarchicalFrame {
         }
     }
 
-    /// Draws `node`'s subtree as last frame's cut had it (the seed), one box level
-    /// coarser: a box opened last frame none of whose child boxes was opened is drawn as
-    /// its group impostor; the rest of the cut, at its cheapest. What the cut did not
-    /// reach, at its coarsest.
+    /// Draws `node`'s subtree as last frame's cut had it (the seed), one group coarser: a
+    /// box with a group impostor, opened last frame, none of whose children with a group
+    /// impostor was opened, is drawn as its group (a box without one yet is passed
+    /// over); the rest of the cut, at its cheapest. What the cut did not reach, at its
+    /// coarsest.
     fn coarser_than_last_cut(&mut self, node: NodeId, outcome: &mut HierarchyOutcome) {
         let opened =
             |frame: &Self, n: NodeId| frame.seed.get(n as usize) == Some(&NodeSelection::Children);
