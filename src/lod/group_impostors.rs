@@ -6,8 +6,9 @@
 //! those it drew as group impostors, where it refines next), coarsest first within
 //! [`GroupImpostorSettings::build_ms_per_frame`], and released once the cut has not
 //! reached them for [`GroupImpostorSettings::idle_secs`]: memory follows the boxes in
-//! view, not the forest, and no frame stops to build them all. A box without one yet is
-//! opened by the cut to its trees, which are drawn on their own meanwhile.
+//! view, not the forest, and no frame stops to build them all. The cut waits for them:
+//! a box drawn as its group impostor opens only once its children in view have theirs
+//! ([`ImpostorStatus::Coming`]); a box that cannot have one is opened to its trees.
 
 use std::time::Instant;
 
@@ -73,8 +74,9 @@ pub struct GroupImpostors {
     edits_checked_at: f32,
     /// Vertices of all the built groups' models.
     vertices: usize,
-    /// Boxes wanted this frame (scratch).
+    /// Boxes wanted this frame, sorted, and the order they are built in (scratch).
     wanted: Vec<u32>,
+    build_order: Vec<u32>,
     /// Group models built and not yet spawned, and when the last were.
     pending: Vec<Built>,
     published_at: Option<f32>,
@@ -86,6 +88,8 @@ pub struct GroupImpostors {
     builds: u64,
     /// Whether the vertex budget stopped a build since the hierarchy was built (logged once).
     full_logged: bool,
+    /// Whether the vertex budget stopped this frame's building.
+    stopped_at_budget: bool,
     /// Whether boxes the cut wants are still without their group impostor, or what it
     /// wants is not known yet.
     building: bool,
@@ -119,15 +123,34 @@ impl GroupImpostors {
         self.building
     }
 
-    /// Whether box `node` of the culling's hierarchy has a group impostor built for the
-    /// hierarchy it holds now (impostors of an older hierarchy are not used).
-    pub(crate) fn has_impostor(&self, culling: Option<&ForestCulling>, node: usize) -> bool {
+    /// Where box `node`'s group impostor stands for the hierarchy the culling holds now
+    /// (impostors built for an older one are not used).
+    pub(crate) fn status(&self, culling: Option<&ForestCulling>, node: usize) -> ImpostorStatus {
         let current = culling.is_some_and(|c| {
             let depth = c.hierarchy.as_ref().map_or(0, BoxHierarchy::depth);
             matches!((self.built, c.hierarchy_version()), (Some((v, d, _)), Some(now)) if v == now && d == depth)
         });
-        current && self.nodes.get(node).is_some_and(Option::is_some)
+        if current && self.nodes.get(node).is_some_and(Option::is_some) {
+            ImpostorStatus::Built
+        } else if self.stopped_at_budget || (current && self.unbuildable.get(node) == Some(&true)) {
+            ImpostorStatus::Unavailable
+        } else {
+            ImpostorStatus::Coming
+        }
     }
+}
+
+/// Where a box's group impostor stands ([`GroupImpostors::status`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum ImpostorStatus {
+    /// Built for the boxes the culling holds now.
+    Built,
+    /// Not built yet, and it will be once the cut wants it: the box may have one, and
+    /// the vertex budget did not stop this frame's building.
+    Coming,
+    /// It cannot have one (too few trees, no bounds, its model could not be built), or
+    /// [`GroupImpostorSettings::max_vertices`] stopped the building.
+    Unavailable,
 }
 
 /// Built group models are handed to the renderer together, at most this often (seconds
@@ -205,12 +228,14 @@ pub(super) fn build_group_impostors(
 
     let start = Instant::now();
     let mut wanted = core::mem::take(&mut groups.wanted);
+    let mut order = core::mem::take(&mut groups.build_order);
     let cut_known = cut.layout == Some(version);
     if cut_known {
         wanted_boxes(&cut, hierarchy, &mut wanted);
     } else {
         wanted.clear();
     }
+    build_order(&cut, hierarchy, &wanted, &mut order);
     for &node in &wanted {
         if let Some(g) = groups.nodes[node as usize].as_mut() {
             g.wanted_at = now;
@@ -222,6 +247,7 @@ pub(super) fn build_group_impostors(
         now - settings.idle_secs.max(0.0),
     );
     let (built, exhausted) = groups.build_wanted(
+        &order,
         &wanted,
         GroupInputs {
             hierarchy,
@@ -232,6 +258,7 @@ pub(super) fn build_group_impostors(
         start,
     );
     groups.wanted = wanted;
+    groups.build_order = order;
     for node in core::mem::take(&mut groups.releasing) {
         groups.release(node, &mut commands, &mut models);
     }
@@ -302,6 +329,7 @@ impl GroupImpostors {
         self.built = None;
         self.building = false;
         self.full_logged = false;
+        self.stopped_at_budget = false;
     }
 
     /// Releases box `node`'s group impostor, if it has one.
@@ -347,13 +375,14 @@ impl GroupImpostors {
         self.edits_checked_at = now;
     }
 
-    /// Builds the group models of the `wanted` boxes (sorted, coarsest first) that have
-    /// none or a stale one, into `pending`, until the frame's building time is spent (at
-    /// least one a frame) or the vertex budget is reached (releasing the impostors wanted
-    /// longest ago, not this frame, to make room). Returns how many it built and whether
-    /// every wanted box is now built or cannot be.
+    /// Builds the group models of the `wanted` boxes (sorted) that have none or a stale
+    /// one, in the order `order` lists them, into `pending`, until the frame's building
+    /// time is spent (at least one a frame) or the vertex budget is reached (releasing the
+    /// impostors wanted longest ago, not this frame, to make room). Returns how many it
+    /// built and whether every wanted box is now built or cannot be.
     fn build_wanted(
         &mut self,
+        order: &[u32],
         wanted: &[u32],
         inputs: GroupInputs,
         start: Instant,
@@ -364,13 +393,14 @@ impl GroupImpostors {
             models,
             settings,
         } = inputs;
+        self.stopped_at_budget = false;
         let spend = settings.build_ms_per_frame.max(0.0) / 1000.0;
         let mut far_first: HashMap<AssetId<TreeModel>, Vec<u32>> = HashMap::default();
         let mut built = 0;
         let mut pending_vertices: usize =
             self.pending.iter().map(|b| model_vertices(&b.model)).sum();
         let mut freed = 0;
-        for &node in wanted {
+        for &node in order {
             let node = node as usize;
             let needs = self.nodes[node].as_ref().is_none_or(|g| g.stale)
                 && !self.unbuildable[node]
@@ -419,6 +449,7 @@ impl GroupImpostors {
                 Some(0)
             };
             let Some(made) = made else {
+                self.stopped_at_budget = true;
                 if !self.full_logged {
                     self.full_logged = true;
                     info!(
@@ -499,6 +530,47 @@ fn wanted_boxes(cut: &HierarchicalCut, boxes: &BoxHierarchy, wanted: &mut Vec<u3
     wanted.retain(|&node| (node as usize) < boxes.node_count());
     wanted.sort_unstable();
     wanted.dedup();
+}
+
+/// Into `order`: the `wanted` boxes (sorted) in the order their group impostors are
+/// built. First the children of the boxes last frame's cut drew as their best group
+/// impostor, the most valuable box's first: the cut opens those boxes once their children
+/// have their group impostors ([`ImpostorStatus::Coming`]), so these builds are what
+/// lets it refine where the forest is near. Then the rest, coarsest first.
+fn build_order(cut: &HierarchicalCut, boxes: &BoxHierarchy, wanted: &[u32], order: &mut Vec<u32>) {
+    order.clear();
+    let mut opening: Vec<(f32, u32)> = cut
+        .boxes
+        .iter()
+        .zip(&cut.selection)
+        .enumerate()
+        .filter_map(|(i, (node, selection))| match (*node, selection) {
+            (Some(node), NodeSelection::Impostor(0)) if i < cut.hierarchy.len() => {
+                let best = cut.hierarchy.impostors(i as u32).first();
+                Some((best.map_or(0.0, |level| level.benefit), node))
+            }
+            _ => None,
+        })
+        .collect();
+    opening.sort_by(|a, b| b.0.total_cmp(&a.0));
+    for (_, node) in opening {
+        if let Some(children) = boxes.children(node as usize) {
+            order.extend(
+                children
+                    .map(|c| c as u32)
+                    .filter(|c| wanted.binary_search(c).is_ok()),
+            );
+        }
+    }
+    let mut first: Vec<u32> = order.clone();
+    first.sort_unstable();
+    first.dedup();
+    order.extend(
+        wanted
+            .iter()
+            .copied()
+            .filter(|node| first.binary_search(node).is_err()),
+    );
 }
 
 /// The trees `trees` of the table as members of a group placed at `origin` (their

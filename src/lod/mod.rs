@@ -57,7 +57,7 @@ pub use alerts::{TargetUnreachable, Unreachable};
 pub use diagnostics::{LodDiagnostics, LodDiagnosticsPlugin};
 pub use group_impostors::GroupImpostors;
 #[cfg(test)]
-pub(crate) use group_impostors::{GROUP_REBUILD_SECS, GroupImpostorOf};
+pub(crate) use group_impostors::{GROUP_REBUILD_SECS, GroupImpostorOf, ImpostorStatus};
 pub use overrun::OverrunCut;
 pub use settings::{
     BenefitReport, FrameBudget, FrameGoal, GroupImpostorSettings, LodMode, StrategyKind,

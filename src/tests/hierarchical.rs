@@ -7,7 +7,8 @@ use crate::budget::{HierarchicalLod, NodeSelection};
 use crate::culling::ForestCulling;
 use crate::draw::TreeDrawList;
 use crate::lod::{
-    GroupImpostorOf, GroupImpostorSettings, GroupImpostors, HierarchicalCut, StrategyKind,
+    GroupImpostorOf, GroupImpostorSettings, GroupImpostors, HierarchicalCut, ImpostorStatus,
+    StrategyKind,
 };
 use crate::prelude::*;
 use bevy::prelude::*;
@@ -394,4 +395,77 @@ fn group_impostors_are_built_for_the_boxes_in_view_and_released_when_left() {
             "box {node} kept behind the camera"
         );
     }
+}
+
+/// A box the cut drew as its group impostor opens only once its children in view have
+/// theirs (or cannot have one): opened earlier, it would open through a child without one
+/// down to every tree beneath it, thousands at 100 000 trees, priced in one frame. The
+/// cut still reaches the near trees on their own, a box level as their groups are built.
+#[test]
+fn a_box_drawn_as_its_group_opens_once_its_children_have_theirs() {
+    let mut app = common::default_forest_view(EYE, LOOK_AT, |app| {
+        app.insert_resource(GroupImpostorSettings {
+            // One build a frame: children wait for theirs over several frames.
+            build_ms_per_frame: 0.0,
+            ..Default::default()
+        });
+    });
+    // A tight target until the cut draws its first groups, their children's groups
+    // still to come; then time for every tree.
+    for _ in 0..200 {
+        if frame(&mut app, hierarchical(1.0)).impostors_drawn > 0 {
+            break;
+        }
+    }
+    let mut last = reached_boxes(&app);
+    assert!(
+        last.iter()
+            .any(|(_, s)| matches!(s, NodeSelection::Impostor(_))),
+        "the cut draws groups: {last:?}"
+    );
+    let mut opened_after_group = 0;
+    let mut trees_drawn = 0;
+    for frames in 0..400 {
+        let d = frame(&mut app, hierarchical(5000.0));
+        let reached = reached_boxes(&app);
+        let world = app.world();
+        let (groups, culling) = (
+            world.resource::<GroupImpostors>(),
+            world.resource::<ForestCulling>(),
+        );
+        for &(node, selection) in &reached {
+            let was_group = last
+                .iter()
+                .any(|&(b, s)| b == node && matches!(s, NodeSelection::Impostor(_)));
+            if !(was_group && selection == NodeSelection::Children) {
+                continue;
+            }
+            opened_after_group += 1;
+            let children = culling.hierarchy.as_ref().unwrap().children(node as usize);
+            let children = children.unwrap_or_default();
+            for &(child, _) in reached
+                .iter()
+                .filter(|(c, _)| children.contains(&(*c as usize)))
+            {
+                assert_ne!(
+                    groups.status(Some(culling), child as usize),
+                    ImpostorStatus::Coming,
+                    "frame {frames}: box {node} opened before its child {child} had its group"
+                );
+            }
+        }
+        for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
+            assert!(!visible || own || by_group, "instance {i} unrepresented");
+        }
+        last = reached;
+        trees_drawn = d.trees_drawn;
+        if opened_after_group > 0 && trees_drawn > 20 {
+            break;
+        }
+    }
+    assert!(opened_after_group > 0, "no box drawn as its group opened");
+    assert!(
+        trees_drawn > 20,
+        "the cut never reached the trees: {trees_drawn}"
+    );
 }

@@ -7,6 +7,7 @@ use bevy::prelude::*;
 
 use crate::budget::{HierarchicalLod, HierarchyOutcome, LodHierarchy, NodeId, NodeSelection};
 use crate::culling::{BoxHierarchy, NodeVisibility};
+use crate::lod::group_impostors::ImpostorStatus;
 use crate::lod::search::Rungs;
 use crate::lod::value::{Object, Part, VisibleTree};
 use crate::lod::{LadderEntry, RUNG_FRACTIONS};
@@ -109,6 +110,8 @@ pub(super) struct HierarchicalFrame {
     tree_objects: Vec<[u32; 2]>,
     /// This frame's cut.
     pub(super) drawn: Vec<Drawn>,
+    /// A box stayed alone this frame waiting for a child's group impostor.
+    waiting: bool,
 }
 
 const NONE: u32 = u32::MAX;
@@ -138,6 +141,19 @@ pub(super) struct CutOutcome {
     /// Not even the coarsest cut fitted: the solver left the scene empty and the coarsest
     /// cut is drawn instead.
     pub(super) scene_dropped: bool,
+    /// A box stayed its group impostor waiting for a child's ([`ImpostorStatus::Coming`]):
+    /// the cut may refine once it is built.
+    pub(super) waiting: bool,
+}
+
+/// How a box enters a frame's hierarchy ([`HierarchicalFrame::entry`]).
+enum Entry {
+    /// With what is under it in view; whether it was drawn as its group impostor last
+    /// frame (its children are then under one).
+    Opened { was_impostor: bool },
+    /// Alone, as a leaf with its group impostor's rungs; `waiting` for a child's group
+    /// impostor to open.
+    Alone { waiting: bool },
 }
 
 /// What one frame of the strategy needs from the stage.
@@ -152,8 +168,8 @@ pub(super) struct HierarchyInputs<'a> {
     /// The version of the boxes (a new hierarchy forgets last frame's cut; trees planted
     /// or felled do not).
     pub(super) layout: Option<u64>,
-    /// Whether box `node` has a group impostor (built for these boxes).
-    pub(super) has_impostor: &'a dyn Fn(usize) -> bool,
+    /// Where box `node`'s group impostor stands.
+    pub(super) status: &'a dyn Fn(usize) -> ImpostorStatus,
 }
 
 impl HierarchicalFrame {
@@ -186,6 +202,7 @@ impl HierarchicalFrame {
         }
         self.tree_objects.clear();
         self.tree_objects.resize(inputs.trees.len(), [NONE; 2]);
+        self.waiting = false;
         let mut loose = Vec::new();
         for (i, object) in inputs.objects.iter().enumerate() {
             match object.part {
@@ -270,6 +287,7 @@ impl HierarchicalFrame {
                 .count() as u32,
             solved: outcome,
             scene_dropped,
+            waiting: self.waiting,
         }
     }
 
@@ -284,37 +302,59 @@ impl HierarchicalFrame {
         })
     }
 
-    /// Whether box `node` enters this frame's hierarchy with what is under it (`Some`,
-    /// with whether it was drawn as its group impostor last frame, which its children are then
-    /// under), or alone as a leaf with its group impostor's rungs (`None`).
+    /// How box `node` (in view; `inside`: entirely) enters this frame's hierarchy.
     ///
     /// Alone where last frame's cut makes opening it this frame impossible: below a box
-    /// drawn as its group impostor (`under_impostor`), or drawn as its group impostor at a rung it can still
-    /// refine within. Its trees' value and cost are then last known ones. So the work of
-    /// a frame follows the cut, not every tree in view; the cut refines by at most one
-    /// box level a frame (coarsening is not limited).
-    fn expands(
+    /// drawn as its group impostor (`under_impostor`), or drawn as its group impostor at
+    /// a rung it can still refine within. Its trees' value and cost are then last known
+    /// ones. So the work of a frame follows the cut, not every tree in view; the cut
+    /// refines by at most one box level a frame (coarsening is not limited).
+    ///
+    /// Alone too, waiting, where it was drawn as its best group impostor and a child in
+    /// view has no group impostor yet but will have one: opened, it would be opened
+    /// through that child down to every tree beneath it — thousands of trees priced at
+    /// once near the top of the hierarchy, drawn at their cheapest, and collapsed again
+    /// when their cost arrives.
+    fn entry(
         &self,
+        boxes: &BoxHierarchy,
         node: usize,
+        inside: bool,
         under_impostor: bool,
-        has_impostor: &dyn Fn(usize) -> bool,
-    ) -> Option<bool> {
+        status: &dyn Fn(usize) -> ImpostorStatus,
+    ) -> Entry {
         let previous = self.previous.get(&Key::Box(node as u32)).copied();
-        let alone = has_impostor(node)
-            && self.box_totals.contains_key(&(node as u32))
-            && (under_impostor || matches!(previous, Some(NodeSelection::Impostor(k)) if k > 0));
-        (!alone).then_some(matches!(previous, Some(NodeSelection::Impostor(_))))
+        let was_impostor = matches!(previous, Some(NodeSelection::Impostor(_)));
+        let known =
+            status(node) == ImpostorStatus::Built && self.box_totals.contains_key(&(node as u32));
+        if !known {
+            return Entry::Opened { was_impostor };
+        }
+        if under_impostor || matches!(previous, Some(NodeSelection::Impostor(k)) if k > 0) {
+            return Entry::Alone { waiting: false };
+        }
+        let child_coming = was_impostor
+            && boxes.children(node).is_some_and(|mut children| {
+                children.any(|c| {
+                    in_view(boxes, c, inside).is_some() && status(c) == ImpostorStatus::Coming
+                })
+            });
+        if child_coming {
+            Entry::Alone { waiting: true }
+        } else {
+            Entry::Opened { was_impostor }
+        }
     }
 
     /// Marks in `needed` (one per instance) the instances this frame's hierarchy will
-    /// add as trees: those under the boxes in view that [`expands`](Self::expands) opens
+    /// add as trees: those under the boxes in view that [`entry`](Self::entry) opens
     /// down to their trees. The Value stage values only these.
     pub(super) fn needed_instances(
         &self,
         boxes: &BoxHierarchy,
         layout: Option<u64>,
         instances: usize,
-        has_impostor: &dyn Fn(usize) -> bool,
+        status: &dyn Fn(usize) -> ImpostorStatus,
         needed: &mut Vec<bool>,
     ) {
         needed.clear();
@@ -328,7 +368,10 @@ impl HierarchicalFrame {
             let Some(inside) = in_view(boxes, node, inside) else {
                 continue;
             };
-            let Some(drawn_as_impostor) = self.expands(node, under_impostor, has_impostor) else {
+            let Entry::Opened {
+                was_impostor: drawn_as_impostor,
+            } = self.entry(boxes, node, inside, under_impostor, status)
+            else {
                 continue;
             };
             match boxes.children(node) {
@@ -490,7 +533,7 @@ impl Builder<'_, '_, '_, '_> {
     }
 
     /// Adds box `node` in view and what is in view under it — or, where
-    /// [`HierarchicalFrame::expands`] says so, the box alone.
+    /// [`HierarchicalFrame::entry`] says so, the box alone.
     fn add_box(
         &mut self,
         boxes: &BoxHierarchy,
@@ -500,14 +543,21 @@ impl Builder<'_, '_, '_, '_> {
     ) -> Option<Added> {
         let inside = in_view(boxes, node, inside)?;
         let key = Key::Box(node as u32);
-        let has_impostor = self.inputs.has_impostor;
-        let Some(drawn_as_impostor) = self.frame.expands(node, under_impostor, has_impostor) else {
-            let &(value, full) = self.frame.box_totals.get(&(node as u32))?;
-            let (levels, times) = (self.impostor_rungs)(node, value, full)?;
-            let id = self.frame.hierarchy.add_object(&levels).ok()?;
-            self.push(key, What::Box(node as u32), times);
-            return Some((id, value, full));
-        };
+        let drawn_as_impostor =
+            match self
+                .frame
+                .entry(boxes, node, inside, under_impostor, self.inputs.status)
+            {
+                Entry::Opened { was_impostor } => was_impostor,
+                Entry::Alone { waiting } => {
+                    self.frame.waiting |= waiting;
+                    let &(value, full) = self.frame.box_totals.get(&(node as u32))?;
+                    let (levels, times) = (self.impostor_rungs)(node, value, full)?;
+                    let id = self.frame.hierarchy.add_object(&levels).ok()?;
+                    self.push(key, What::Box(node as u32), times);
+                    return Some((id, value, full));
+                }
+            };
         let children: Vec<Added> = match boxes.children(node) {
             Some(range) => range
                 .filter_map(|child| self.add_box(boxes, child, inside, drawn_as_impostor))

@@ -14,7 +14,7 @@ use crate::budget::{Allocation, BudgetStats, MIN_DEPTH};
 use crate::culling::ForestCulling;
 use crate::draw::TreeDrawList;
 use crate::lod::RUNG_FRACTIONS;
-use crate::lod::group_impostors::GroupImpostors;
+use crate::lod::group_impostors::{GroupImpostors, ImpostorStatus};
 use crate::lod::search::{self, FULL_DETAIL_TIME, ObjectSearch};
 use crate::lod::select::{self, Selected};
 use crate::tree::TreeModel;
@@ -37,12 +37,12 @@ impl Strategy for Hierarchical {
         let Some(boxes) = culling.hierarchy.as_ref() else {
             return false;
         };
-        let has_impostor = |node: usize| impostors.has_impostor(Some(culling), node);
+        let status = |node: usize| impostors.status(Some(culling), node);
         self.frame.needed_instances(
             boxes,
             culling.hierarchy_version(),
             culling.result.visibility.len(),
-            &has_impostor,
+            &status,
             needed,
         );
         true
@@ -66,7 +66,7 @@ impl Strategy for Hierarchical {
             models: scene.models,
             search,
         };
-        let has_impostor = |node: usize| scene.impostors.has_impostor(culling, node);
+        let status = |node: usize| scene.impostors.status(culling, node);
         let inputs = HierarchyInputs {
             boxes: culling.and_then(|c| c.hierarchy.as_ref()),
             instances: culling.map_or(0, |c| c.result.visibility.len()),
@@ -76,14 +76,14 @@ impl Strategy for Hierarchical {
             ladders: search.ladders,
             rendering,
             layout: culling.and_then(ForestCulling::hierarchy_version),
-            has_impostor: &has_impostor,
+            status: &status,
         };
         let group_scratch = &mut self.scratch;
         let solved = self.frame.solve(
             &inputs,
             &mut |i| search.rungs(i, values[i], scratch),
             &mut |node, value, members_full| {
-                if !has_impostor(node) {
+                if status(node) != ImpostorStatus::Built {
                     return None;
                 }
                 Some(impostors.rungs(node, value, members_full, group_scratch))
@@ -127,8 +127,9 @@ impl Strategy for Hierarchical {
         let used = outcome.drawn.cost;
         outcome.impostors_drawn = solved.impostors_drawn;
         outcome.benefit = Some(solved.solved.benefit as f32);
-        // The cut moves a box level a frame from where last frame's left it.
-        outcome.settling = scene.cut.selection != scene.cut.seed;
+        // The cut moves a box level a frame from where last frame's left it, and refines
+        // once the group impostors it waits for are built.
+        outcome.settling = scene.cut.selection != scene.cut.seed || solved.waiting;
         // Not even the coarsest cut fitted: it is the floor, and its overrun the one no
         // choice could avoid.
         let floor = if solved.scene_dropped { used } else { 0.0 };
