@@ -88,7 +88,8 @@ pub struct GroupImpostors {
     builds: u64,
     /// Whether the vertex budget stopped a build since the hierarchy was built (logged once).
     full_logged: bool,
-    /// Whether the vertex budget stopped this frame's building.
+    /// Whether the vertex budget stopped a build, and no group impostor was released
+    /// since (to make room or idle): boxes without one will not get it soon.
     stopped_at_budget: bool,
     /// Whether boxes the cut wants are still without their group impostor, or what it
     /// wants is not known yet.
@@ -146,7 +147,8 @@ pub(crate) enum ImpostorStatus {
     /// Built for the boxes the culling holds now.
     Built,
     /// Not built yet, and it will be once the cut wants it: the box may have one, and
-    /// the vertex budget did not stop this frame's building.
+    /// the vertex budget has room (no build stopped at it since an impostor was last
+    /// released).
     Coming,
     /// It cannot have one (too few trees, no bounds, its model could not be built), or
     /// [`GroupImpostorSettings::max_vertices`] stopped the building.
@@ -335,6 +337,7 @@ impl GroupImpostors {
     /// Releases box `node`'s group impostor, if it has one.
     fn release(&mut self, node: usize, commands: &mut Commands, models: &mut Assets<TreeModel>) {
         if let Some(old) = self.nodes.get_mut(node).and_then(Option::take) {
+            self.stopped_at_budget = false;
             self.vertices -= old.vertices;
             commands.entity(old.entity).try_despawn();
             models.remove(&old.model);
@@ -393,7 +396,6 @@ impl GroupImpostors {
             models,
             settings,
         } = inputs;
-        self.stopped_at_budget = false;
         let spend = settings.build_ms_per_frame.max(0.0) / 1000.0;
         let mut far_first: HashMap<AssetId<TreeModel>, Vec<u32>> = HashMap::default();
         let mut built = 0;

@@ -80,12 +80,20 @@ fn no_visible_tree_is_left_unrepresented() {
     let mut saw_groups = false;
     // Down and back up again: the cut starts from last frame's either way.
     for target in [5000.0, 200.0, 40.0, 10.0, 2.0, 0.5, 2.0, 10.0, 40.0, 5000.0] {
-        // A cut refines by one box level a frame: give a rising target a few frames.
+        // A cut refines by one box level a frame, once the boxes it opens have their
+        // children's groups: give a rising target a few frames after they are built.
         let frames = if target >= 5000.0 { 6 } else { 2 };
         let mut d = LodDiagnostics::default();
         let mut in_view = 0;
-        for _ in 0..frames {
+        let mut settled = 0;
+        for _ in 0..300 {
+            if settled == frames {
+                break;
+            }
             d = frame(&mut app, hierarchical(target));
+            if !app.world().resource::<GroupImpostors>().building() {
+                settled += 1;
+            }
             assert_eq!(d.undrawn, 0, "at {target} ms: {d:?}");
             assert!(
                 d.trees_drawn + d.impostors_drawn > 0,
