@@ -307,7 +307,12 @@ fn group_geometry_stays_within_its_vertex_budget_coarsest_first() {
         assert!(node == 0 || nodes.contains(&((node - 1) / 4)), "box {node}");
     }
     // And the picture is still complete with fewer groups.
-    for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
+    assert_every_visible_tree_represented(&mut app);
+}
+
+/// Every instance culling sees is drawn on its own or by a group.
+fn assert_every_visible_tree_represented(app: &mut App) {
+    for (i, (visible, own, by_group)) in coverage(app).into_iter().enumerate() {
         assert!(!visible || own || by_group, "instance {i} unrepresented");
     }
 }
@@ -354,9 +359,7 @@ fn group_impostors_are_built_for_the_boxes_in_view_and_released_when_left() {
         );
         builds = groups.builds();
         // Until it has them, the cut draws every tree of a box on its own.
-        for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
-            assert!(!visible || own || by_group, "instance {i} unrepresented");
-        }
+        assert_every_visible_tree_represented(&mut app);
         if !app.world().resource::<GroupImpostors>().building() {
             break;
         }
@@ -462,9 +465,7 @@ fn a_box_drawn_as_its_group_opens_once_its_children_have_theirs() {
                 );
             }
         }
-        for (i, (visible, own, by_group)) in coverage(&mut app).into_iter().enumerate() {
-            assert!(!visible || own || by_group, "instance {i} unrepresented");
-        }
+        assert_every_visible_tree_represented(&mut app);
         last = reached;
         trees_drawn = d.trees_drawn;
         if opened_after_group > 0 && trees_drawn > 20 {
