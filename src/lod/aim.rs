@@ -39,6 +39,14 @@ pub(super) struct AimCalibration {
     overrun: OverrunReaction,
 }
 
+/// The share of frames a calibration aims to leave past its quantile, as a part of the
+/// share the goal allows. A calibration aimed at the allowed share itself lands on either
+/// side of it from run to run (it follows the frames it learns from: 4.5–5.4% over for 5%
+/// across six runs of 1 000 frames, `docs/goals-calibrated.md`), so a promise of "at
+/// most" is kept in only about half the runs; aimed a fifth below, it is kept in nearly
+/// all, for about 0.1 σ of frame time (under 1% of the detail at the scatter measured).
+const AIMED_PART: f32 = 0.8;
+
 /// How many frames' factors are kept for their measurements (which arrive a frame or two
 /// late).
 const KEPT_AIMS: usize = 32;
@@ -72,9 +80,10 @@ impl AimCalibration {
         }
     }
 
-    /// The factor on a prediction that `share` of frames exceed; a calibration starts
-    /// afresh when its share changes.
+    /// The factor on a prediction that [`AIMED_PART`] of `share` of frames exceed; a
+    /// calibration starts afresh when its share changes.
     fn factor(&mut self, slot: usize, share: f32, spread: &LogSpread) -> f32 {
+        let share = share * AIMED_PART;
         let calibration = &mut self.calibrations[slot];
         if calibration.is_none_or(|c| c.share() != QuantileCalibration::new(share).share()) {
             *calibration = Some(QuantileCalibration::new(share));
