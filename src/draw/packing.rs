@@ -57,15 +57,31 @@ pub(crate) struct GeometryAtlas {
     pub indices: Vec<u32>,
     /// Segment lines and leaf points.
     pub primitives: Vec<GpuPrimitive>,
+    /// How many vertices, indices and primitives were [taken](Self::take) before these:
+    /// a model appended later is placed after them.
+    taken: [u32; 3],
 }
 
 impl GeometryAtlas {
+    /// The vertices, indices and primitives appended since the last call, for upload;
+    /// models appended afterwards are placed after them.
+    pub(crate) fn take(&mut self) -> (Vec<GpuVertex>, Vec<u32>, Vec<GpuPrimitive>) {
+        self.taken[0] += self.vertices.len() as u32;
+        self.taken[1] += self.indices.len() as u32;
+        self.taken[2] += self.primitives.len() as u32;
+        (
+            core::mem::take(&mut self.vertices),
+            core::mem::take(&mut self.indices),
+            core::mem::take(&mut self.primitives),
+        )
+    }
+
     /// Appends a model and returns where it went. Leaf triangles and points are stored
     /// twice, in the two orders [`TreeDrawList`] addresses (the vertices once).
     pub(crate) fn push(&mut self, model: &TreeModel) -> ModelSlot {
         let far_first = model.far_first_leaves();
-        let first_triangle = |atlas: &Self| (atlas.indices.len() / 3) as u32;
-        let base = self.vertices.len() as u32;
+        let first_triangle = |atlas: &Self| (atlas.taken[1] + atlas.indices.len() as u32) / 3;
+        let base = self.taken[0] + self.vertices.len() as u32;
         self.vertices.extend(
             model
                 .trunk_positions
@@ -83,7 +99,7 @@ impl GeometryAtlas {
         self.indices
             .extend(model.trunk_indices.iter().map(|&i| base + i));
 
-        let leaf_base = self.vertices.len() as u32;
+        let leaf_base = self.taken[0] + self.vertices.len() as u32;
         let leaf_ring = |v: usize| {
             let leaf = *model.leaf_vertex_leaf.get(v)? as usize;
             let group = model.leaves.get(leaf)?.group as usize;
@@ -109,7 +125,7 @@ impl GeometryAtlas {
             self.indices.extend(indices.iter().map(|&i| leaf_base + i));
         }
 
-        let lines = self.primitives.len() as u32;
+        let lines = self.taken[2] + self.primitives.len() as u32;
         self.primitives
             .extend(
                 model
@@ -124,7 +140,7 @@ impl GeometryAtlas {
                         ring_b: ring,
                     }),
             );
-        let points = self.primitives.len() as u32;
+        let points = self.taken[2] + self.primitives.len() as u32;
         self.primitives
             .extend(both_orders(model, &far_first).map(|leaf| {
                 GpuPrimitive {

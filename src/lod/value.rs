@@ -103,18 +103,24 @@ pub(super) struct VisibleObjects {
     pub(super) held: Vec<u32>,
     pub(super) held_parts: select::Selected,
     pub(super) held_counts: PrimitiveCounts,
-    /// Per model, its object types' ranks and the rest the stages derive from it; rebuilt
-    /// when models change.
+    /// Per model, its object types' ranks and the rest the stages derive from it, in the
+    /// order the models came ([`refresh_infos`]).
     pub(super) infos: Vec<ModelInfo>,
+    /// Where each model's info is in `infos`.
+    info_index: HashMap<AssetId<TreeModel>, u32>,
     /// The stage's own time this frame, milliseconds.
     pub(super) value_ms: f32,
     /// Per instance of [`ForestInstances`], its model and placement: derived when the
     /// forest or the models change, not per frame.
     placed: Vec<PlacedTree>,
-    /// The models' version `infos` was derived at, and the layout, transforms and models'
-    /// version `placed` was.
-    ranked_version: Option<u64>,
-    placed_key: Option<(u64, u64, u64)>,
+    /// The models' versions `infos` follows ([`TreeModelsVersion`]), and how many times
+    /// they were derived anew (appending keeps every model's index).
+    infos_version: Option<u64>,
+    infos_edited: Option<u64>,
+    infos_generation: u64,
+    /// The layout, transforms, instance models' and infos' versions `placed` was derived
+    /// at.
+    placed_key: Option<(u64, u64, u64, u64)>,
     /// `(rank, complexity, object, value)` of the visible objects, before ordering.
     keyed: Vec<(u32, f32, Object, f32)>,
     /// Per rank, where its objects start in `objects` (a counting sort's scratch).
@@ -230,18 +236,16 @@ pub(super) struct PlacedTree {
 /// [`PlacedTree::model`] of an instance whose model is not loaded.
 pub(super) const NO_MODEL: u32 = u32::MAX;
 
-fn place_trees(table: &ForestInstances, infos: &[ModelInfo]) -> Vec<PlacedTree> {
-    // (Group impostors add thousands of models: look them up, not search them.)
-    let index: HashMap<AssetId<TreeModel>, usize> = infos
-        .iter()
-        .enumerate()
-        .map(|(m, info)| (info.id, m))
-        .collect();
+fn place_trees(
+    table: &ForestInstances,
+    infos: &[ModelInfo],
+    index: &HashMap<AssetId<TreeModel>, u32>,
+) -> Vec<PlacedTree> {
     (0..table.len())
         .map(|i| {
             let transform = table.transforms[i];
             let id = table.model_id(i);
-            let model = id.and_then(|id| index.get(&id).copied());
+            let model = id.and_then(|id| index.get(&id).map(|&m| m as usize));
             let (center, trunk_center) = model.map_or((Vec3::ZERO, Vec3::ZERO), |m| {
                 (
                     transform.transform_point3(infos[m].center),
@@ -258,52 +262,77 @@ fn place_trees(table: &ForestInstances, infos: &[ModelInfo]) -> Vec<PlacedTree> 
         .collect()
 }
 
-fn model_infos(models: &Assets<TreeModel>, costs: &PrimitiveCosts) -> Vec<ModelInfo> {
+/// Brings `visible.infos` up to the models: appends the models added since (their ranks
+/// among all), or derives every model's anew when one was changed or removed. Deriving
+/// one orders its leaves (`ModelSlot::of`); group impostors are published a few at a
+/// time, to thousands of models, and deriving them all at each publication took the
+/// Value stage milliseconds.
+fn refresh_infos(
+    visible: &mut VisibleObjects,
+    models: &Assets<TreeModel>,
+    costs: &PrimitiveCosts,
+    version: &TreeModelsVersion,
+) {
+    if visible.infos_edited != Some(version.edited) {
+        visible.infos.clear();
+        visible.info_index.clear();
+        visible.infos_edited = Some(version.edited);
+        visible.infos_generation += 1;
+    }
+    for (id, model) in models.iter() {
+        if !visible.info_index.contains_key(&id) {
+            visible.info_index.insert(id, visible.infos.len() as u32);
+            visible.infos.push(model_info(id, model, costs));
+        }
+    }
+    rank_infos(&mut visible.infos);
+}
+
+/// What the stages need of `model`, ranked later ([`rank_infos`]).
+fn model_info(id: AssetId<TreeModel>, m: &TreeModel, costs: &PrimitiveCosts) -> ModelInfo {
     // complexity(O): the full-detail time at one constant projected area for everyone.
     const AREA: f32 = 4.0;
-    let mut types: Vec<((AssetId<TreeModel>, bool), f32)> = models
+    let sizes = m.leaf_groups.iter().map(|g| g.leaves.len() as f32);
+    ModelInfo {
+        id,
+        trunk_rank: (0, costs.triangles(m.trunk_triangle_count() as u32, AREA)),
+        leaves_rank: (0, costs.triangles(m.leaf_triangle_count() as u32, AREA)),
+        center: m.bounds.center(),
+        radius: m.bounds.half_extents().length(),
+        group_leaves: sizes.clone().sum(),
+        group_leaves_sqrt: sizes.map(f32::sqrt).sum(),
+        trunk_area_center: m.trunk_area_center,
+        trunk_area: m.mean_trunk_triangle_area * m.trunk_triangle_count() as f32,
+        leaf_area: select::mean_leaf_area(m),
+        has_trunk: m.trunk_triangle_count() > 0,
+        has_leaves: !m.leaf_groups.is_empty(),
+        slot: ModelSlot::of(m),
+    }
+}
+
+/// Ranks the 2 · models object types (each model's trunk and leaves) simple → complex,
+/// `0..2 · models`, by their complexities.
+fn rank_infos(infos: &mut [ModelInfo]) {
+    let mut types: Vec<(u32, bool, f32)> = infos
         .iter()
-        .flat_map(|(id, m)| {
+        .enumerate()
+        .flat_map(|(m, info)| {
             [
-                (
-                    (id, false),
-                    costs.triangles(m.trunk_triangle_count() as u32, AREA),
-                ),
-                (
-                    (id, true),
-                    costs.triangles(m.leaf_triangle_count() as u32, AREA),
-                ),
+                (m as u32, false, info.trunk_rank.1),
+                (m as u32, true, info.leaves_rank.1),
             ]
         })
         .collect();
-    types.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let ranks: HashMap<(AssetId<TreeModel>, bool), (u32, f32)> = types
-        .into_iter()
-        .enumerate()
-        .map(|(rank, (key, complexity))| (key, (rank as u32, complexity)))
-        .collect();
-    models
-        .iter()
-        .map(|(id, m)| {
-            let rank = |leaves| ranks.get(&(id, leaves)).copied().unwrap_or((0, 0.0));
-            let sizes = m.leaf_groups.iter().map(|g| g.leaves.len() as f32);
-            ModelInfo {
-                id,
-                trunk_rank: rank(false),
-                leaves_rank: rank(true),
-                center: m.bounds.center(),
-                radius: m.bounds.half_extents().length(),
-                group_leaves: sizes.clone().sum(),
-                group_leaves_sqrt: sizes.map(f32::sqrt).sum(),
-                trunk_area_center: m.trunk_area_center,
-                trunk_area: m.mean_trunk_triangle_area * m.trunk_triangle_count() as f32,
-                leaf_area: select::mean_leaf_area(m),
-                has_trunk: m.trunk_triangle_count() > 0,
-                has_leaves: !m.leaf_groups.is_empty(),
-                slot: ModelSlot::of(m),
-            }
-        })
-        .collect()
+    types.sort_by(|a, b| a.2.total_cmp(&b.2));
+    for (rank, (m, leaves, _)) in types.into_iter().enumerate() {
+        let info = &mut infos[m as usize];
+        let slot = if leaves {
+            &mut info.leaves_rank
+        } else {
+            &mut info.trunk_rank
+        };
+        slot.0 = rank as u32;
+    }
 }
 
 pub(super) fn value_objects(
@@ -396,23 +425,26 @@ fn value_trees(
     models: &Assets<TreeModel>,
     version: &TreeModelsVersion,
 ) {
-    if visible.ranked_version != Some(version.0) {
+    if visible.infos_version != Some(version.any) {
         let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
-        visible.infos = model_infos(models, &costs);
-        visible.ranked_version = Some(version.0);
+        refresh_infos(visible, models, &costs, version);
+        visible.infos_version = Some(version.any);
     }
     // Culling's answer is indexed by the table it was built for (the same, once models
     // have loaded: both are kept in the same frame).
     if culling.layout_version() != Some(table.layout_version()) {
         return;
     }
+    // The infos of models added later are appended: only those the instances use, or a
+    // new derivation of them all, move the placements.
     let placed_key = (
         table.layout_version(),
         table.transforms_version(),
-        version.0,
+        table.models_version(),
+        visible.infos_generation,
     );
     if visible.placed_key != Some(placed_key) {
-        visible.placed = place_trees(table, &visible.infos);
+        visible.placed = place_trees(table, &visible.infos, &visible.info_index);
         visible.placed_key = Some(placed_key);
     }
     // Far trees decided in turn (`FrameBudget::far_refresh`).
@@ -666,5 +698,72 @@ fn value_ladders(
             visible.values.push(value);
             l += 1;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::species;
+
+    fn refreshed(visible: &mut VisibleObjects, models: &Assets<TreeModel>, edited: u64) {
+        let costs = PrimitiveCosts::from_calibration(CostModel::default().calibration(), 1.0);
+        let version = TreeModelsVersion { any: 0, edited };
+        refresh_infos(visible, models, &costs, &version);
+    }
+
+    /// Each model's index and ranks after `refresh_infos`, by id.
+    fn ranks(visible: &VisibleObjects) -> HashMap<AssetId<TreeModel>, (u32, u32, u32)> {
+        visible
+            .infos
+            .iter()
+            .enumerate()
+            .map(|(m, info)| (info.id, (m as u32, info.trunk_rank.0, info.leaves_rank.0)))
+            .collect()
+    }
+
+    /// A model added later is appended (every model keeps its index, so the placements
+    /// that point at infos stay right) and the object types are ranked among all as a
+    /// derivation of every model at once ranks them; a model changed or removed derives
+    /// them all anew.
+    #[test]
+    fn models_added_later_are_appended_and_ranked_among_all() {
+        let mut models = Assets::<TreeModel>::default();
+        let slender = models.add(species("slender")).id();
+        let grand = models.add(species("grand")).id();
+        let mut visible = VisibleObjects::default();
+        refreshed(&mut visible, &models, 0);
+        let before = ranks(&visible);
+        let generation = visible.infos_generation;
+        let broad = models.add(species("broad")).id();
+        refreshed(&mut visible, &models, 0);
+        let after = ranks(&visible);
+        assert_eq!(visible.infos_generation, generation, "appended");
+        for id in [slender, grand] {
+            assert_eq!(
+                after[&id].0, before[&id].0,
+                "an earlier model kept its index"
+            );
+        }
+        assert_eq!(after[&broad].0, 2);
+        let mut at_once = VisibleObjects::default();
+        refreshed(&mut at_once, &models, 0);
+        let at_once = ranks(&at_once);
+        for id in [slender, grand, broad] {
+            assert_eq!(
+                (after[&id].1, after[&id].2),
+                (at_once[&id].1, at_once[&id].2),
+                "ranks as if derived at once"
+            );
+        }
+        models.remove(grand);
+        refreshed(&mut visible, &models, 1);
+        assert_eq!(
+            visible.infos.len(),
+            2,
+            "derived anew without the removed model"
+        );
+        assert_ne!(visible.infos_generation, generation);
+        assert_eq!(visible.info_index.len(), 2);
     }
 }

@@ -19,6 +19,7 @@
 //! its own pixels. The forest is on render layer 0: a camera whose `RenderLayers` leave
 //! it out (a minimap) does not draw it.
 
+mod append_buffer;
 mod batch;
 mod calibrate;
 #[cfg(feature = "hud")]
@@ -66,6 +67,7 @@ use crate::draw::packing::{FrameChunks, GeometryAtlas, PrimitiveKind};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
 use crate::tree::{NO_RING, TreeModel, TreeModelsVersion};
 use crate::wind::RingOffsetTable;
+use append_buffer::AppendBuffer;
 use batch::{CORNER_INDICES, DrawBatch};
 
 /// Name of the pass in Bevy's render diagnostics: its GPU time is published as
@@ -252,9 +254,15 @@ struct GpuLight {
 /// The frame's records, filled during extraction.
 #[derive(Resource, Default)]
 struct ForestFrame {
+    /// The models' versions the atlas follows ([`TreeModelsVersion`]).
     geometry_version: Option<u64>,
+    geometry_edited: Option<u64>,
+    /// The models added since the last upload, packed after those already uploaded.
     atlas: GeometryAtlas,
     atlas_dirty: bool,
+    /// The uploaded atlas is to be let go before `atlas` is (a model was changed or
+    /// removed, and the atlas is packed anew).
+    atlas_reset: bool,
     slots: HashMap<AssetId<TreeModel>, ModelSlot>,
     light: GpuLight,
     records: FrameRecords,
@@ -315,13 +323,20 @@ fn extract_forest(
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
-    if frame.geometry_version != Some(version.0) {
-        frame.geometry_version = Some(version.0);
+    if frame.geometry_edited != Some(version.edited) {
+        frame.geometry_edited = Some(version.edited);
         frame.atlas = GeometryAtlas::default();
-        frame.slots = models
-            .iter()
-            .map(|(id, model)| (id, frame.atlas.push(model)))
-            .collect();
+        frame.slots.clear();
+        frame.atlas_reset = true;
+    }
+    if frame.geometry_version != Some(version.any) {
+        frame.geometry_version = Some(version.any);
+        for (id, model) in models.iter() {
+            if !frame.slots.contains_key(&id) {
+                let slot = frame.atlas.push(model);
+                frame.slots.insert(id, slot);
+            }
+        }
         frame.atlas_dirty = true;
     }
     frame.light = lights.iter().next().map_or(
@@ -510,9 +525,9 @@ impl FrameRecords {
 /// GPU copies of the frame's records and the shared geometry.
 #[derive(Resource)]
 struct ForestBuffers {
-    vertices: RawBufferVec<crate::draw::packing::GpuVertex>,
-    indices: RawBufferVec<u32>,
-    primitives: RawBufferVec<crate::draw::packing::GpuPrimitive>,
+    vertices: AppendBuffer<crate::draw::packing::GpuVertex>,
+    indices: AppendBuffer<u32>,
+    primitives: AppendBuffer<crate::draw::packing::GpuPrimitive>,
     instances: RawBufferVec<GpuInstance>,
     chunks: RawBufferVec<crate::draw::packing::GpuChunk>,
     ring_offsets: RawBufferVec<[f32; 4]>,
@@ -528,9 +543,9 @@ impl Default for ForestBuffers {
     fn default() -> Self {
         let storage = || BufferUsages::STORAGE | BufferUsages::COPY_DST;
         Self {
-            vertices: RawBufferVec::new(storage()),
-            indices: RawBufferVec::new(storage()),
-            primitives: RawBufferVec::new(storage()),
+            vertices: AppendBuffer::new("sherwood_forest_vertices"),
+            indices: AppendBuffer::new("sherwood_forest_indices"),
+            primitives: AppendBuffer::new("sherwood_forest_primitives"),
             instances: RawBufferVec::new(storage()),
             chunks: RawBufferVec::new(storage()),
             ring_offsets: RawBufferVec::new(storage()),
@@ -563,18 +578,6 @@ fn take_into<T: Pod + Default>(buffer: &mut RawBufferVec<T>, values: &mut Vec<T>
     }
 }
 
-/// Writes `values` into `buffer` (padded as [`fill`] pads) and releases them.
-fn upload_once<T: Pod + Default>(
-    buffer: &mut RawBufferVec<T>,
-    mut values: Vec<T>,
-    device: &RenderDevice,
-    queue: &RenderQueue,
-) {
-    take_into(buffer, &mut values);
-    buffer.write_buffer(device, queue);
-    *buffer.values_mut() = Vec::new();
-}
-
 fn upload_buffers(
     mut frame: ResMut<ForestFrame>,
     mut buffers: ResMut<ForestBuffers>,
@@ -586,16 +589,23 @@ fn upload_buffers(
     let start = Instant::now();
     let frame = &mut *frame;
     let buffers = &mut *buffers;
-    if frame.atlas_dirty {
-        // The shared geometry is written once per change of the models, and its CPU
+    if core::mem::take(&mut frame.atlas_reset) {
+        buffers.vertices.clear();
+        buffers.indices.clear();
+        buffers.primitives.clear();
+    }
+    if core::mem::take(&mut frame.atlas_dirty) {
+        // The shared geometry is written once, models appended as they come, and its CPU
         // copies let go once written: with a hierarchical strategy's group impostors it
         // is hundreds of megabytes, and on a software renderer the GPU's copy is process
-        // memory too. (A change of the models builds the atlas anew.)
-        let atlas = core::mem::take(&mut frame.atlas);
-        upload_once(&mut buffers.vertices, atlas.vertices, &device, &queue);
-        upload_once(&mut buffers.indices, atlas.indices, &device, &queue);
-        upload_once(&mut buffers.primitives, atlas.primitives, &device, &queue);
-        frame.atlas_dirty = false;
+        // memory too. (A change or removal of a model packs the atlas anew.)
+        let limit = device.limits().max_storage_buffer_binding_size;
+        let (vertices, indices, primitives) = frame.atlas.take();
+        buffers.vertices.append(&vertices, limit, &device, &queue);
+        buffers.indices.append(&indices, limit, &device, &queue);
+        buffers
+            .primitives
+            .append(&primitives, limit, &device, &queue);
     }
     if buffers.corner_indices.buffer().is_none() {
         fill(&mut buffers.corner_indices, &CORNER_INDICES);

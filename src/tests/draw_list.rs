@@ -58,6 +58,28 @@ fn the_atlas_keeps_each_model_apart_and_addresses_leaves_by_range() {
     );
 }
 
+/// A model appended after the atlas was taken for upload is placed, and its indices
+/// point, after everything taken: the uploads together are the atlas packed at once.
+#[test]
+fn a_model_appended_after_an_upload_lands_where_packing_all_at_once_puts_it() {
+    let (slender, broad) = (species("slender"), species("broad"));
+    let mut whole = GeometryAtlas::default();
+    let whole_slots = [whole.push(&slender), whole.push(&broad)];
+    let mut appended = GeometryAtlas::default();
+    let first = appended.push(&slender);
+    let (mut vertices, mut indices, mut primitives) = appended.take();
+    let second = appended.push(&broad);
+    let (more_vertices, more_indices, more_primitives) = appended.take();
+    assert_eq!([first, second], whole_slots);
+    vertices.extend(more_vertices);
+    indices.extend(more_indices);
+    primitives.extend(more_primitives);
+    assert!(vertices == whole.vertices, "vertices differ");
+    assert!(indices == whole.indices, "indices differ");
+    assert!(primitives == whole.primitives, "lines and points differ");
+    assert!(appended.take().0.is_empty(), "taken once");
+}
+
 #[test]
 fn leaves_past_the_model_s_count_are_its_far_first_order() {
     let model = species("broad");

@@ -101,6 +101,17 @@ fn render_views(
     views: &[(Vec3, Vec3)],
     spawn: impl FnOnce(&mut World) + Send + 'static,
 ) -> (Vec<Picture>, ForestRenderStats) {
+    render_views_then(name, views, spawn, |_| {})
+}
+
+/// [`render_views`], with `later` changing the scene once the pipelines are ready, a few
+/// frames before the pictures are taken.
+fn render_views_then(
+    name: &str,
+    views: &[(Vec3, Vec3)],
+    spawn: impl FnOnce(&mut World) + Send + 'static,
+    later: impl FnOnce(&mut World),
+) -> (Vec<Picture>, ForestRenderStats) {
     let _serial = SERIAL
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -160,6 +171,10 @@ fn render_views(
         }
     }
     assert!(ready_frames >= 3, "{name}: pipelines never became ready");
+    later(app.world_mut());
+    for _ in 0..3 {
+        app.update();
+    }
 
     let mut pictures = Vec::new();
     for (i, image) in images.into_iter().enumerate() {
@@ -294,6 +309,68 @@ fn full_detail_covers_the_pixels_of_the_standard_renderer() {
         difference * 100.0,
         ours.coverage(),
         covered
+    );
+}
+
+/// A model added after the forest's geometry went up is appended to it (group impostors
+/// are published a few at a time): its own geometry drawn where it stands, the trees
+/// already uploaded still drawn — the buffers it outgrew copied on the GPU — exactly as
+/// when both models were there from the start.
+#[test]
+fn a_model_added_later_draws_as_if_it_had_been_there_from_the_start() {
+    let eye = Vec3::new(0.0, 5.0, 22.0);
+    let target = Vec3::new(0.0, 5.0, 0.0);
+    let place = |world: &mut World, name: &str, x: f32| {
+        let entity = spawn_full_tree(world, species(name));
+        world
+            .entity_mut(entity)
+            .insert(Transform::from_xyz(x, 0.0, 0.0));
+    };
+    let (at_once, _) = render("model_at_once", eye, target, move |world| {
+        place(world, "slender", -4.0);
+        place(world, "broad", 4.0);
+    });
+    let (mut later, _) = render_views_then(
+        "model_added_later",
+        &[(eye, target)],
+        move |world| place(world, "slender", -4.0),
+        move |world| place(world, "broad", 4.0),
+    );
+    let later = later.remove(0);
+    let (left, right) = (
+        |p: &Picture| {
+            (0..SIZE / 2)
+                .flat_map(|x| (0..SIZE).map(move |y| (x, y)))
+                .filter(|&(x, y)| p.lit(x, y))
+                .count()
+        },
+        |p: &Picture| {
+            (SIZE / 2..SIZE)
+                .flat_map(|x| (0..SIZE).map(move |y| (x, y)))
+                .filter(|&(x, y)| p.lit(x, y))
+                .count()
+        },
+    );
+    assert!(
+        left(&at_once) > 500 && right(&at_once) > 500,
+        "both trees in view: {} and {} pixels",
+        left(&at_once),
+        right(&at_once)
+    );
+    assert_eq!(
+        (left(&later), right(&later)),
+        (left(&at_once), right(&at_once)),
+        "pixels lit left and right of the middle"
+    );
+    assert!(
+        later.rgba == at_once.rgba,
+        "{} pixels differ",
+        later
+            .rgba
+            .chunks(4)
+            .zip(at_once.rgba.chunks(4))
+            .filter(|(a, b)| a != b)
+            .count()
     );
 }
 

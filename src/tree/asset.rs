@@ -446,21 +446,36 @@ impl AssetLoader for TreeModelLoader {
 #[derive(Default)]
 pub struct TreePlugin;
 
-/// Bumped whenever a tree model is added, changed or removed, so that whatever is
-/// derived from the set of models (packed geometry, object-type ranks) is rebuilt.
+/// Which tree models changed, so that whatever is derived from them (packed geometry,
+/// object-type ranks) follows: `any` is bumped whenever a model is added, changed or
+/// removed, `edited` only when one is changed or removed. What is derived model by model
+/// can then append the models added (group impostors are published a few at a time, to
+/// thousands of models) and derive everything anew only when `edited` moved.
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct TreeModelsVersion(pub u64);
+pub(crate) struct TreeModelsVersion {
+    /// Bumped when a model is added, changed or removed.
+    pub(crate) any: u64,
+    /// Bumped when a model is changed or removed.
+    pub(crate) edited: u64,
+}
 
 fn bump_models_version(
     mut events: MessageReader<AssetEvent<TreeModel>>,
     mut version: ResMut<TreeModelsVersion>,
 ) {
-    let mut changed = false;
+    let (mut any, mut edited) = (false, false);
     for event in events.read() {
-        changed |= !matches!(event, AssetEvent::Unused { .. });
+        any |= !matches!(event, AssetEvent::Unused { .. });
+        edited |= matches!(
+            event,
+            AssetEvent::Modified { .. } | AssetEvent::Removed { .. }
+        );
     }
-    if changed {
-        version.0 += 1;
+    if any {
+        version.any += 1;
+    }
+    if edited {
+        version.edited += 1;
     }
 }
 
