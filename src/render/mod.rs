@@ -260,9 +260,11 @@ struct ForestFrame {
     /// The models added since the last upload, packed after those already uploaded.
     atlas: GeometryAtlas,
     atlas_dirty: bool,
-    /// The uploaded atlas is to be let go before `atlas` is (a model was changed or
-    /// removed, and the atlas is packed anew).
+    /// The uploaded atlas is to be let go before `atlas` is (the atlas is packed anew).
     atlas_reset: bool,
+    /// Models removed since the atlas was last packed anew (their geometry is still in
+    /// it).
+    removed_models: usize,
     slots: HashMap<AssetId<TreeModel>, ModelSlot>,
     light: GpuLight,
     records: FrameRecords,
@@ -296,6 +298,33 @@ impl FrameRecords {
     }
 }
 
+/// Brings the atlas up to the models: the models added since are appended; a model
+/// removed leaves its geometry behind, unused, until the removed are as many as the rest;
+/// a model changed, or that many removed, packs the atlas anew.
+fn follow_models(frame: &mut ForestFrame, models: &Assets<TreeModel>, version: TreeModelsVersion) {
+    if frame.geometry_version == Some(version.any) {
+        return;
+    }
+    frame.geometry_version = Some(version.any);
+    let before = frame.slots.len();
+    frame.slots.retain(|&id, _| models.contains(id));
+    frame.removed_models += before - frame.slots.len();
+    if frame.geometry_edited != Some(version.edited) || frame.removed_models > frame.slots.len() {
+        frame.geometry_edited = Some(version.edited);
+        frame.atlas = GeometryAtlas::default();
+        frame.slots.clear();
+        frame.removed_models = 0;
+        frame.atlas_reset = true;
+    }
+    for (id, model) in models.iter() {
+        if !frame.slots.contains_key(&id) {
+            let slot = frame.atlas.push(model);
+            frame.slots.insert(id, slot);
+        }
+    }
+    frame.atlas_dirty = true;
+}
+
 #[expect(
     clippy::type_complexity,
     reason = "an extraction query names what it reads"
@@ -323,22 +352,7 @@ fn extract_forest(
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
-    if frame.geometry_edited != Some(version.edited) {
-        frame.geometry_edited = Some(version.edited);
-        frame.atlas = GeometryAtlas::default();
-        frame.slots.clear();
-        frame.atlas_reset = true;
-    }
-    if frame.geometry_version != Some(version.any) {
-        frame.geometry_version = Some(version.any);
-        for (id, model) in models.iter() {
-            if !frame.slots.contains_key(&id) {
-                let slot = frame.atlas.push(model);
-                frame.slots.insert(id, slot);
-            }
-        }
-        frame.atlas_dirty = true;
-    }
+    follow_models(frame, &models, **version);
     frame.light = lights.iter().next().map_or(
         GpuLight {
             direction: Vec3::new(0.3, 1.0, 0.2).normalize().extend(0.0).to_array(),

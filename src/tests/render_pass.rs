@@ -374,6 +374,55 @@ fn a_model_added_later_draws_as_if_it_had_been_there_from_the_start() {
     );
 }
 
+/// A model removed leaves its geometry in the atlas, unused, while a model added later is
+/// appended after it: the trees still there and the new one draw as in a scene that had
+/// only them from the start.
+#[test]
+fn a_model_removed_leaves_the_others_drawn_as_they_were() {
+    let eye = Vec3::new(0.0, 5.0, 22.0);
+    let target = Vec3::new(0.0, 5.0, 0.0);
+    let place = |world: &mut World, name: &str, x: f32| {
+        let entity = spawn_full_tree(world, species(name));
+        world
+            .entity_mut(entity)
+            .insert(Transform::from_xyz(x, 0.0, 0.0));
+        entity
+    };
+    let (only_them, _) = render("models_without_the_removed", eye, target, move |world| {
+        place(world, "broad", -4.0);
+        place(world, "grand", 4.0);
+    });
+    let removed: Arc<Mutex<Option<Entity>>> = Arc::default();
+    let first = removed.clone();
+    let (mut after, _) = render_views_then(
+        "models_after_a_removal",
+        &[(eye, target)],
+        move |world| {
+            *first.lock().unwrap() = Some(place(world, "slender", 0.0));
+            place(world, "broad", -4.0);
+        },
+        move |world| {
+            let entity = removed.lock().unwrap().take().unwrap();
+            let model = world.get::<TreeInstance>(entity).unwrap().model.id();
+            world.despawn(entity);
+            world.resource_mut::<Assets<TreeModel>>().remove(model);
+            place(world, "grand", 4.0);
+        },
+    );
+    let after = after.remove(0);
+    assert!(only_them.coverage() > 1000, "{}", only_them.coverage());
+    assert!(
+        after.rgba == only_them.rgba,
+        "{} pixels differ",
+        after
+            .rgba
+            .chunks(4)
+            .zip(only_them.rgba.chunks(4))
+            .filter(|(a, b)| a != b)
+            .count()
+    );
+}
+
 #[test]
 fn lines_are_as_wide_as_asked() {
     let model = column();

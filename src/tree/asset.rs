@@ -448,14 +448,15 @@ pub struct TreePlugin;
 
 /// Which tree models changed, so that whatever is derived from them (packed geometry,
 /// object-type ranks) follows: `any` is bumped whenever a model is added, changed or
-/// removed, `edited` only when one is changed or removed. What is derived model by model
-/// can then append the models added (group impostors are published a few at a time, to
-/// thousands of models) and derive everything anew only when `edited` moved.
+/// removed, `edited` only when one is changed in place. What is derived model by model
+/// can then append the models added and pass over those removed (group impostors are
+/// published and released a few at a time, to thousands of models), and derive
+/// everything anew only when `edited` moved.
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct TreeModelsVersion {
     /// Bumped when a model is added, changed or removed.
     pub(crate) any: u64,
-    /// Bumped when a model is changed or removed.
+    /// Bumped when a model is changed in place.
     pub(crate) edited: u64,
 }
 
@@ -466,10 +467,7 @@ fn bump_models_version(
     let (mut any, mut edited) = (false, false);
     for event in events.read() {
         any |= !matches!(event, AssetEvent::Unused { .. });
-        edited |= matches!(
-            event,
-            AssetEvent::Modified { .. } | AssetEvent::Removed { .. }
-        );
+        edited |= matches!(event, AssetEvent::Modified { .. });
     }
     if any {
         version.any += 1;
