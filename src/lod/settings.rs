@@ -64,7 +64,9 @@ pub enum FrameGoal {
     /// (`CostModel::frame_spread`) reaches at `share` (and likewise for the rare bound,
     /// whichever aim is lower). Where that scatter is reached is calibrated by how often
     /// frames actually pass it (adaptive conformal inference), so frame times with a
-    /// longer tail than a log-normal one still keep their shares. A noisy machine is
+    /// longer tail than a log-normal one still keep their shares; the calibration aims at
+    /// four fifths of each share, so that a run keeps its share rather than landing on
+    /// either side of it. A noisy machine is
     /// aimed below the target, a quiet one a little above it (σ = 2%: 1.06 × target);
     /// under vsync never past the last vertical blank the target allows.
     Tail {
