@@ -917,11 +917,13 @@ fn list_changes_at_a_still_camera(steady: SteadySelection, frames: u32) -> (u32,
     (changes, app, size)
 }
 
-/// A still camera whose machine turns 10% slower: the kept selection leaves its band
+/// A still camera whose machine turns 15% slower: the kept selection leaves its band
 /// and is handed out anew within a few frames, and the new selection fits; gradually
 /// (the default), only the trees the price needs change, at most two thirds as many as
-/// when every tree takes its fresh share (measured: 104 against 182; how many change all
-/// at once depends on the frame the band is left, 182 to 248 in the runs measured).
+/// when every tree takes its fresh share (measured: 134 against 270; how many change all
+/// at once depends on the frame the band is left). (A kept selection may sit up to its
+/// band below the time, 8%, so a 10% slowdown may still fit it and rightly change
+/// nothing: the tail goal's aim moved it there once.)
 #[test]
 fn a_still_camera_on_a_slower_machine_changes_only_the_trees_the_price_needs() {
     let _measuring = common::measuring();
@@ -933,7 +935,7 @@ fn a_still_camera_on_a_slower_machine_changes_only_the_trees_the_price_needs() {
         let (_, mut app, _) = list_changes_at_a_still_camera(steady, 10);
         let before = all_lists(&mut app);
         let slower = Truth {
-            speed: 1.1,
+            speed: 1.15,
             ..MACHINE
         };
         let mut driver = Driver::new(0.0);
