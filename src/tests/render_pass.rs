@@ -312,66 +312,73 @@ fn full_detail_covers_the_pixels_of_the_standard_renderer() {
     );
 }
 
+/// A full-detail tree of species `name` standing at `x` on the X axis.
+fn place_tree(world: &mut World, name: &str, x: f32) -> Entity {
+    let entity = spawn_full_tree(world, species(name));
+    world
+        .entity_mut(entity)
+        .insert(Transform::from_xyz(x, 0.0, 0.0));
+    entity
+}
+
+/// Pixels lit in the columns `columns`.
+fn lit_in(picture: &Picture, columns: core::ops::Range<u32>) -> usize {
+    columns
+        .flat_map(|x| (0..SIZE).map(move |y| (x, y)))
+        .filter(|&(x, y)| picture.lit(x, y))
+        .count()
+}
+
+fn assert_same_picture(picture: &Picture, expected: &Picture) {
+    assert!(
+        picture.rgba == expected.rgba,
+        "{} pixels differ",
+        picture
+            .rgba
+            .chunks(4)
+            .zip(expected.rgba.chunks(4))
+            .filter(|(a, b)| a != b)
+            .count()
+    );
+}
+
+/// The eye and target of the pictures with trees at x = -4, 0 and 4.
+const ROW_VIEW: (Vec3, Vec3) = (Vec3::new(0.0, 5.0, 22.0), Vec3::new(0.0, 5.0, 0.0));
+
 /// A model added after the forest's geometry went up is appended to it (group impostors
 /// are published a few at a time): its own geometry drawn where it stands, the trees
 /// already uploaded still drawn — the buffers it outgrew copied on the GPU — exactly as
 /// when both models were there from the start.
 #[test]
 fn a_model_added_later_draws_as_if_it_had_been_there_from_the_start() {
-    let eye = Vec3::new(0.0, 5.0, 22.0);
-    let target = Vec3::new(0.0, 5.0, 0.0);
-    let place = |world: &mut World, name: &str, x: f32| {
-        let entity = spawn_full_tree(world, species(name));
-        world
-            .entity_mut(entity)
-            .insert(Transform::from_xyz(x, 0.0, 0.0));
-    };
-    let (at_once, _) = render("model_at_once", eye, target, move |world| {
-        place(world, "slender", -4.0);
-        place(world, "broad", 4.0);
+    let (eye, target) = ROW_VIEW;
+    let (at_once, _) = render("model_at_once", eye, target, |world| {
+        place_tree(world, "slender", -4.0);
+        place_tree(world, "broad", 4.0);
     });
     let (mut later, _) = render_views_then(
         "model_added_later",
-        &[(eye, target)],
-        move |world| place(world, "slender", -4.0),
-        move |world| place(world, "broad", 4.0),
+        &[ROW_VIEW],
+        |world| {
+            place_tree(world, "slender", -4.0);
+        },
+        |world| {
+            place_tree(world, "broad", 4.0);
+        },
     );
     let later = later.remove(0);
-    let (left, right) = (
-        |p: &Picture| {
-            (0..SIZE / 2)
-                .flat_map(|x| (0..SIZE).map(move |y| (x, y)))
-                .filter(|&(x, y)| p.lit(x, y))
-                .count()
-        },
-        |p: &Picture| {
-            (SIZE / 2..SIZE)
-                .flat_map(|x| (0..SIZE).map(move |y| (x, y)))
-                .filter(|&(x, y)| p.lit(x, y))
-                .count()
-        },
-    );
+    let halves = |p: &Picture| (lit_in(p, 0..SIZE / 2), lit_in(p, SIZE / 2..SIZE));
+    let (left, right) = halves(&at_once);
     assert!(
-        left(&at_once) > 500 && right(&at_once) > 500,
-        "both trees in view: {} and {} pixels",
-        left(&at_once),
-        right(&at_once)
+        left > 500 && right > 500,
+        "both trees in view: {left} and {right} pixels"
     );
     assert_eq!(
-        (left(&later), right(&later)),
-        (left(&at_once), right(&at_once)),
+        halves(&later),
+        (left, right),
         "pixels lit left and right of the middle"
     );
-    assert!(
-        later.rgba == at_once.rgba,
-        "{} pixels differ",
-        later
-            .rgba
-            .chunks(4)
-            .zip(at_once.rgba.chunks(4))
-            .filter(|(a, b)| a != b)
-            .count()
-    );
+    assert_same_picture(&later, &at_once);
 }
 
 /// A model removed leaves its geometry in the atlas, unused, while a model added later is
@@ -379,48 +386,30 @@ fn a_model_added_later_draws_as_if_it_had_been_there_from_the_start() {
 /// only them from the start.
 #[test]
 fn a_model_removed_leaves_the_others_drawn_as_they_were() {
-    let eye = Vec3::new(0.0, 5.0, 22.0);
-    let target = Vec3::new(0.0, 5.0, 0.0);
-    let place = |world: &mut World, name: &str, x: f32| {
-        let entity = spawn_full_tree(world, species(name));
-        world
-            .entity_mut(entity)
-            .insert(Transform::from_xyz(x, 0.0, 0.0));
-        entity
-    };
-    let (only_them, _) = render("models_without_the_removed", eye, target, move |world| {
-        place(world, "broad", -4.0);
-        place(world, "grand", 4.0);
+    let (eye, target) = ROW_VIEW;
+    let (only_them, _) = render("models_without_the_removed", eye, target, |world| {
+        place_tree(world, "broad", -4.0);
+        place_tree(world, "grand", 4.0);
     });
     let removed: Arc<Mutex<Option<Entity>>> = Arc::default();
     let first = removed.clone();
     let (mut after, _) = render_views_then(
         "models_after_a_removal",
-        &[(eye, target)],
+        &[ROW_VIEW],
         move |world| {
-            *first.lock().unwrap() = Some(place(world, "slender", 0.0));
-            place(world, "broad", -4.0);
+            *first.lock().unwrap() = Some(place_tree(world, "slender", 0.0));
+            place_tree(world, "broad", -4.0);
         },
         move |world| {
             let entity = removed.lock().unwrap().take().unwrap();
             let model = world.get::<TreeInstance>(entity).unwrap().model.id();
             world.despawn(entity);
             world.resource_mut::<Assets<TreeModel>>().remove(model);
-            place(world, "grand", 4.0);
+            place_tree(world, "grand", 4.0);
         },
     );
-    let after = after.remove(0);
     assert!(only_them.coverage() > 1000, "{}", only_them.coverage());
-    assert!(
-        after.rgba == only_them.rgba,
-        "{} pixels differ",
-        after
-            .rgba
-            .chunks(4)
-            .zip(only_them.rgba.chunks(4))
-            .filter(|(a, b)| a != b)
-            .count()
-    );
+    assert_same_picture(&after.remove(0), &only_them);
 }
 
 #[test]
