@@ -12,9 +12,10 @@
 //! (`-- robin-hood` or `-- hierarchical` for one strategy, `-- ground` for one view).
 //!
 //! After the timings it prints, per forest, view and strategy, the mean time of the LOD
-//! stages (value, budget, draw lists, from `LodDiagnostics`) and of the wind (and the
-//! trees it swayed and updated) over 64 more frames, how many of them kept last frame's
-//! hand-out (0 here), and the cut.
+//! stages (value, budget, draw lists, from `LodDiagnostics`), of the wind (and the
+//! trees it swayed and updated) and of building group impostors (and the models built)
+//! over 64 more frames, how many of them kept last frame's hand-out (0 here), and the
+//! cut.
 
 use std::time::Duration;
 
@@ -194,7 +195,10 @@ fn stages(c: &mut Criterion) {
                     }
                 });
                 if let Some(bench) = &mut bench {
-                    reports.push((id, trees, stage_means(bench)));
+                    let means = stage_means(bench);
+                    let groups = bench.app.world().get_resource::<GroupImpostors>();
+                    let held = groups.map_or((0, 0), |g| (g.len(), g.vertices()));
+                    reports.push((id, trees, means, held));
                 }
             }
         }
@@ -216,13 +220,16 @@ fn stages(c: &mut Criterion) {
                 rings,
                 shared,
                 blocks,
+                build,
+                built,
             ],
             kept,
         ),
+        (held, vertices),
     ) in reports
     {
         println!(
-            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, draw lists {draw_lists:.2}), wind {wind:.2} ms ({updated:.0} trees updated and {shared:.0} borrowing {blocks:.0} blocks computed, of {moved:.0} moving; {still:.0} left still, {rings:.0} ring offsets held); mean of {REPORT_FRAMES} frames, {kept} kept last frame's hand-out; {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
+            "{name}, {trees} trees: {} visible; LOD stages {:.2} ms (value {value:.2}, budget {budget:.2}, draw lists {draw_lists:.2}), wind {wind:.2} ms ({updated:.0} trees updated and {shared:.0} borrowing {blocks:.0} blocks computed, of {moved:.0} moving; {still:.0} left still, {rings:.0} ring offsets held), group impostors built {build:.2} ms ({built:.2} models a frame; {held} held, {vertices} vertices); mean of {REPORT_FRAMES} frames, {kept} kept last frame's hand-out; {} held, {} groups and {} trees drawn; {} triangles, {} lines, {} points",
             d.visible_instances,
             value + budget + draw_lists,
             d.held_trees,
@@ -236,13 +243,23 @@ fn stages(c: &mut Criterion) {
 }
 
 /// The last frame's diagnostics; the value, budget and draw-lists stages' and the wind's
-/// mean times, and the trees the wind updated, moved and left still (motion level of
-/// detail), over [`REPORT_FRAMES`] more frames; how many of them kept the hand-out.
-fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 10], u32) {
-    let mut sums = [0.0; 10];
+/// mean times, the trees the wind updated, moved and left still (motion level of
+/// detail), and the group impostors' building time and models built, over
+/// [`REPORT_FRAMES`] more frames; how many of them kept the hand-out.
+fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 12], u32) {
+    let mut sums = [0.0; 12];
     let mut kept = 0;
     for _ in 0..REPORT_FRAMES {
+        let builds = |bench: &Bench| {
+            bench
+                .app
+                .world()
+                .get_resource::<GroupImpostors>()
+                .map_or((0.0, 0), |g| (g.build_ms(), g.builds()))
+        };
+        let (_, built_before) = builds(bench);
         bench.update();
+        let (build_ms, built_after) = builds(bench);
         let world = bench.app.world();
         let d = world.resource::<LodDiagnostics>();
         let wind = world.resource::<WindStats>();
@@ -258,6 +275,8 @@ fn stage_means(bench: &mut Bench) -> (LodDiagnostics, [f32; 10], u32) {
             wind.rings_held as f32,
             wind.shared as f32,
             wind.shared_updated as f32,
+            build_ms,
+            (built_after - built_before) as f32,
         ]) {
             *sum += ms / REPORT_FRAMES as f32;
         }

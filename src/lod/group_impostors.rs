@@ -66,6 +66,9 @@ pub struct GroupImpostors {
     /// Per box, whether it cannot have one (too few trees, no bounds, or its model could
     /// not be built) until its trees change.
     unbuildable: Vec<bool>,
+    /// Per box, the vertices of the model last built for it that found no room in the
+    /// vertex budget (0: none): it is not built again until that much room could be made.
+    unfit: Vec<u32>,
     /// What they were built for.
     built: Option<BuiltFor>,
     /// The hierarchy's edits they follow, and when (`Time<Real>` seconds) they were last
@@ -115,6 +118,12 @@ impl GroupImpostors {
     /// Group models built so far (rebuilds included).
     pub fn builds(&self) -> u64 {
         self.builds
+    }
+
+    /// The main-world time the last frame spent building and publishing group models, ms
+    /// (at most about [`GroupImpostorSettings::build_ms_per_frame`] while boxes wait).
+    pub fn build_ms(&self) -> f32 {
+        self.build_ms
     }
 
     /// Whether boxes the cut reached are still waiting for their group impostor (built a
@@ -219,6 +228,7 @@ pub(super) fn build_group_impostors(
         groups.release_all(&mut commands, &mut models);
         groups.nodes.resize(hierarchy.node_count(), None);
         groups.unbuildable.resize(hierarchy.node_count(), false);
+        groups.unfit.resize(hierarchy.node_count(), 0);
         groups.built = Some(key);
         groups.edits_seen = hierarchy.edits();
         groups.edits_checked_at = now;
@@ -326,6 +336,7 @@ impl GroupImpostors {
             models.remove(&old.model);
         }
         self.unbuildable.clear();
+        self.unfit.clear();
         self.pending.clear();
         self.vertices = 0;
         self.built = None;
@@ -367,6 +378,7 @@ impl GroupImpostors {
         for node in 0..self.nodes.len() {
             if hierarchy.node_edit(node) > self.edits_seen {
                 self.unbuildable[node] = false;
+                self.unfit[node] = 0;
                 if let Some(g) = self.nodes[node].as_mut() {
                     g.stale = true;
                 }
@@ -402,12 +414,25 @@ impl GroupImpostors {
         let mut pending_vertices: usize =
             self.pending.iter().map(|b| model_vertices(&b.model)).sum();
         let mut freed = 0;
+        // The room releases could make (computed when a box that found none is met).
+        let mut room = None;
         for &node in order {
             let node = node as usize;
             let needs = self.nodes[node].as_ref().is_none_or(|g| g.stale)
                 && !self.unbuildable[node]
                 && !self.pending.iter().any(|b| b.node == node);
             if !needs {
+                continue;
+            }
+            // A box whose last model found no room is built again only once that much
+            // could be made: building it (1–3 ms) to throw it away every frame was the
+            // largest part of a still forest's frame at the vertex budget.
+            let unfit = self.unfit[node] as usize;
+            if unfit > 0
+                && *room.get_or_insert_with(|| {
+                    self.room(settings.max_vertices as usize, pending_vertices, wanted)
+                }) < unfit
+            {
                 continue;
             }
             if built > 0 && start.elapsed().as_secs_f32() >= spend {
@@ -451,6 +476,7 @@ impl GroupImpostors {
                 Some(0)
             };
             let Some(made) = made else {
+                self.unfit[node] = model_vertices(&model).try_into().unwrap_or(u32::MAX);
                 self.stopped_at_budget = true;
                 if !self.full_logged {
                     self.full_logged = true;
@@ -463,6 +489,7 @@ impl GroupImpostors {
                 return (built, true);
             };
             freed += made;
+            self.unfit[node] = 0;
             pending_vertices += model_vertices(&model);
             self.pending.push(Built {
                 node,
@@ -472,6 +499,22 @@ impl GroupImpostors {
             });
         }
         (built, true)
+    }
+
+    /// The vertices a model could have within `max_vertices`: what the built and `pending`
+    /// ones leave, and what releasing the impostors not `wanted` this frame would free.
+    fn room(&self, max_vertices: usize, pending: usize, wanted: &[u32]) -> usize {
+        let releasable: usize = self
+            .nodes
+            .iter()
+            .enumerate()
+            .filter_map(|(node, g)| g.as_ref().map(|g| (node, g.vertices)))
+            .filter(|(node, _)| {
+                wanted.binary_search(&(*node as u32)).is_err() && !self.releasing.contains(node)
+            })
+            .map(|(_, vertices)| vertices)
+            .sum();
+        max_vertices.saturating_sub(self.vertices + pending) + releasable
     }
 
     /// Picks for release (into `releasing`), wanted longest ago first, impostors not

@@ -308,6 +308,23 @@ fn group_geometry_stays_within_its_vertex_budget_coarsest_first() {
     }
     // And the picture is still complete with fewer groups.
     assert_every_visible_tree_represented(&mut app);
+    // A still view stops building: a box whose model found no room is not built again
+    // (to be thrown away) every frame while no room could be made.
+    let builds = |app: &App| app.world().resource::<GroupImpostors>().builds();
+    let (mut last, mut quiet) = (builds(&app), 0);
+    for _ in 0..100 {
+        frame(&mut app, hierarchical(2.0));
+        let now = builds(&app);
+        quiet = if now == last { quiet + 1 } else { 0 };
+        last = now;
+        if quiet == 10 {
+            break;
+        }
+    }
+    assert_eq!(
+        quiet, 10,
+        "still building at the vertex budget after 100 frames ({last} models built)"
+    );
 }
 
 /// Every instance culling sees is drawn on its own or by a group.
