@@ -66,9 +66,9 @@ pub struct GroupImpostors {
     /// Per box, whether it cannot have one (too few trees, no bounds, or its model could
     /// not be built) until its trees change.
     unbuildable: Vec<bool>,
-    /// Per box, the vertices of the model last built for it that found no room in the
-    /// vertex budget (0: none): it is not built again until that much room could be made.
-    unfit: Vec<u32>,
+    /// The vertices of the smallest model built that found no room in the vertex budget
+    /// since one last fitted: no box is built while less room than that could be made.
+    unfit: Option<usize>,
     /// What they were built for.
     built: Option<BuiltFor>,
     /// The hierarchy's edits they follow, and when (`Time<Real>` seconds) they were last
@@ -166,8 +166,12 @@ pub(crate) enum ImpostorStatus {
 
 /// Built group models are handed to the renderer together, at most this often (seconds
 /// of real time) while more are being built: every change of the set of tree models
-/// re-packs the forest's geometry.
+/// moves the versions what is derived from them follows.
 const GROUP_PUBLISH_SECS: f32 = 0.5;
+
+/// An impostor is released to make room for another only once the cut has not wanted it
+/// for this long (seconds of real time).
+const EVICT_IDLE_SECS: f32 = 1.0;
 
 /// A group model built and not yet spawned.
 struct Built {
@@ -228,7 +232,6 @@ pub(super) fn build_group_impostors(
         groups.release_all(&mut commands, &mut models);
         groups.nodes.resize(hierarchy.node_count(), None);
         groups.unbuildable.resize(hierarchy.node_count(), false);
-        groups.unfit.resize(hierarchy.node_count(), 0);
         groups.built = Some(key);
         groups.edits_seen = hierarchy.edits();
         groups.edits_checked_at = now;
@@ -266,6 +269,7 @@ pub(super) fn build_group_impostors(
             table: &table,
             models: &models,
             settings: &settings,
+            now,
         },
         start,
     );
@@ -326,6 +330,8 @@ struct GroupInputs<'a> {
     table: &'a ForestInstances,
     models: &'a Assets<TreeModel>,
     settings: &'a GroupImpostorSettings,
+    /// This frame's `Time<Real>` seconds.
+    now: f32,
 }
 
 impl GroupImpostors {
@@ -336,7 +342,7 @@ impl GroupImpostors {
             models.remove(&old.model);
         }
         self.unbuildable.clear();
-        self.unfit.clear();
+        self.unfit = None;
         self.pending.clear();
         self.vertices = 0;
         self.built = None;
@@ -378,7 +384,6 @@ impl GroupImpostors {
         for node in 0..self.nodes.len() {
             if hierarchy.node_edit(node) > self.edits_seen {
                 self.unbuildable[node] = false;
-                self.unfit[node] = 0;
                 if let Some(g) = self.nodes[node].as_mut() {
                     g.stale = true;
                 }
@@ -407,15 +412,15 @@ impl GroupImpostors {
             table,
             models,
             settings,
+            now,
         } = inputs;
         let spend = settings.build_ms_per_frame.max(0.0) / 1000.0;
+        let evict_before = now - EVICT_IDLE_SECS;
         let mut far_first: HashMap<AssetId<TreeModel>, Vec<u32>> = HashMap::default();
         let mut built = 0;
         let mut pending_vertices: usize =
             self.pending.iter().map(|b| model_vertices(&b.model)).sum();
         let mut freed = 0;
-        // The room releases could make (computed when a box that found none is met).
-        let mut room = None;
         for &node in order {
             let node = node as usize;
             let needs = self.nodes[node].as_ref().is_none_or(|g| g.stale)
@@ -424,16 +429,18 @@ impl GroupImpostors {
             if !needs {
                 continue;
             }
-            // A box whose last model found no room is built again only once that much
-            // could be made: building it (1–3 ms) to throw it away every frame was the
-            // largest part of a still forest's frame at the vertex budget.
-            let unfit = self.unfit[node] as usize;
-            if unfit > 0
-                && *room.get_or_insert_with(|| {
-                    self.room(settings.max_vertices as usize, pending_vertices, wanted)
-                }) < unfit
+            // Once a model found no room, none is built until that much room could be
+            // made: building models (1–3 ms each) to throw them away every frame was the
+            // largest part of a frame at the vertex budget.
+            if let Some(unfit) = self.unfit
+                && self.room(
+                    settings.max_vertices as usize,
+                    pending_vertices,
+                    wanted,
+                    evict_before,
+                ) < unfit
             {
-                continue;
+                return (built, true);
             }
             if built > 0 && start.elapsed().as_secs_f32() >= spend {
                 return (built, false);
@@ -471,12 +478,13 @@ impl GroupImpostors {
                 .saturating_sub(replaced + freed);
             let over = needed.saturating_sub(settings.max_vertices as usize);
             let made = if over > 0 {
-                self.make_room(over, wanted)
+                self.make_room(over, wanted, evict_before)
             } else {
                 Some(0)
             };
             let Some(made) = made else {
-                self.unfit[node] = model_vertices(&model).try_into().unwrap_or(u32::MAX);
+                let vertices = model_vertices(&model);
+                self.unfit = Some(self.unfit.map_or(vertices, |v| v.min(vertices)));
                 self.stopped_at_budget = true;
                 if !self.full_logged {
                     self.full_logged = true;
@@ -489,7 +497,7 @@ impl GroupImpostors {
                 return (built, true);
             };
             freed += made;
-            self.unfit[node] = 0;
+            self.unfit = None;
             pending_vertices += model_vertices(&model);
             self.pending.push(Built {
                 node,
@@ -502,34 +510,38 @@ impl GroupImpostors {
     }
 
     /// The vertices a model could have within `max_vertices`: what the built and `pending`
-    /// ones leave, and what releasing the impostors not `wanted` this frame would free.
-    fn room(&self, max_vertices: usize, pending: usize, wanted: &[u32]) -> usize {
-        let releasable: usize = self
-            .nodes
-            .iter()
-            .enumerate()
-            .filter_map(|(node, g)| g.as_ref().map(|g| (node, g.vertices)))
-            .filter(|(node, _)| {
-                wanted.binary_search(&(*node as u32)).is_err() && !self.releasing.contains(node)
-            })
-            .map(|(_, vertices)| vertices)
-            .sum();
+    /// ones leave, and what releasing the impostors [evictable](Self::evictable) would free.
+    fn room(&self, max_vertices: usize, pending: usize, wanted: &[u32], before: f32) -> usize {
+        let releasable: usize = self.evictable(wanted, before).map(|(.., v)| v).sum();
         max_vertices.saturating_sub(self.vertices + pending) + releasable
     }
 
-    /// Picks for release (into `releasing`), wanted longest ago first, impostors not
-    /// `wanted` this frame until `over` vertices are freed; how many it frees, or `None`
-    /// (and picks none) when those impostors do not free enough.
-    fn make_room(&mut self, over: usize, wanted: &[u32]) -> Option<usize> {
-        let mut idle: Vec<(f32, usize, usize)> = self
-            .nodes
+    /// `(wanted_at, node, vertices)` of the impostors that may be released to make room:
+    /// not `wanted` this frame, not already releasing, and last wanted before `before`
+    /// (`Time<Real>` seconds). An impostor wanted a moment ago is kept: a swaying view
+    /// wants it again, and releasing it to build another would rebuild the two in turn
+    /// every frame.
+    fn evictable<'a>(
+        &'a self,
+        wanted: &'a [u32],
+        before: f32,
+    ) -> impl Iterator<Item = (f32, usize, usize)> + 'a {
+        self.nodes
             .iter()
             .enumerate()
             .filter_map(|(node, g)| g.as_ref().map(|g| (g.wanted_at, node, g.vertices)))
-            .filter(|(_, node, _)| {
-                wanted.binary_search(&(*node as u32)).is_err() && !self.releasing.contains(node)
+            .filter(move |&(at, node, _)| {
+                at < before
+                    && wanted.binary_search(&(node as u32)).is_err()
+                    && !self.releasing.contains(&node)
             })
-            .collect();
+    }
+
+    /// Picks for release (into `releasing`), wanted longest ago first, impostors
+    /// [evictable](Self::evictable) until `over` vertices are freed; how many it frees, or
+    /// `None` (and picks none) when those impostors do not free enough.
+    fn make_room(&mut self, over: usize, wanted: &[u32], before: f32) -> Option<usize> {
+        let mut idle: Vec<(f32, usize, usize)> = self.evictable(wanted, before).collect();
         if idle.iter().map(|i| i.2).sum::<usize>() < over {
             return None;
         }
