@@ -165,8 +165,9 @@ pub(crate) enum ImpostorStatus {
 }
 
 /// Built group models are handed to the renderer together, at most this often (seconds
-/// of real time) while more are being built: every change of the set of tree models
-/// moves the versions what is derived from them follows.
+/// of real time) while more are being built: one change of the set of tree models for
+/// them all, which what is derived from the models (packed geometry, per-model infos)
+/// follows by appending.
 const GROUP_PUBLISH_SECS: f32 = 0.5;
 
 /// An impostor is released to make room for another only once the cut has not wanted it
