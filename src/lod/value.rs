@@ -3,7 +3,6 @@
 
 use std::time::Instant;
 
-use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
 use super::select::{self, PrimitiveCosts, TreeView, VisibleLeafGroup};
@@ -13,7 +12,7 @@ use crate::cost::CostModel;
 use crate::culling::{CullView, ForestCulling, FrustumPlanes, InstanceVisibility};
 use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
-use crate::tree::{BoundingSphere, TreeModel, TreeModelsVersion};
+use crate::tree::{BoundingSphere, FollowedModels, TreeModel, TreeModelsVersion};
 use crate::view::LodView;
 
 /// What an object of the hand-out is.
@@ -103,21 +102,15 @@ pub(super) struct VisibleObjects {
     pub(super) held: Vec<u32>,
     pub(super) held_parts: select::Selected,
     pub(super) held_counts: PrimitiveCounts,
-    /// Per model, its object types' ranks and the rest the stages derive from it, in the
-    /// order the models came ([`refresh_infos`]).
+    /// Per model, its object types' ranks and the rest the stages derive from it, at the
+    /// model's index in `models` ([`refresh_infos`]).
     pub(super) infos: Vec<ModelInfo>,
-    /// Where each model's info is in `infos`.
-    info_index: HashMap<AssetId<TreeModel>, u32>,
+    models: FollowedModels,
     /// The stage's own time this frame, milliseconds.
     pub(super) value_ms: f32,
     /// Per instance of [`ForestInstances`], its model and placement: derived when the
     /// forest or the models change, not per frame.
     placed: Vec<PlacedTree>,
-    /// The models' versions `infos` follows ([`TreeModelsVersion`]), and how many times
-    /// they were derived anew (appending keeps every model's index).
-    infos_version: Option<u64>,
-    infos_edited: Option<u64>,
-    infos_generation: u64,
     /// The layout, transforms, instance models' and infos' versions `placed` was derived
     /// at.
     placed_key: Option<(u64, u64, u64, u64)>,
@@ -239,13 +232,13 @@ pub(super) const NO_MODEL: u32 = u32::MAX;
 fn place_trees(
     table: &ForestInstances,
     infos: &[ModelInfo],
-    index: &HashMap<AssetId<TreeModel>, u32>,
+    models: &FollowedModels,
 ) -> Vec<PlacedTree> {
     (0..table.len())
         .map(|i| {
             let transform = table.transforms[i];
             let id = table.model_id(i);
-            let model = id.and_then(|id| index.get(&id).map(|&m| m as usize));
+            let model = id.and_then(|id| models.index(id)).map(|m| m as usize);
             let (center, trunk_center) = model.map_or((Vec3::ZERO, Vec3::ZERO), |m| {
                 (
                     transform.transform_point3(infos[m].center),
@@ -262,31 +255,28 @@ fn place_trees(
         .collect()
 }
 
-/// Brings `visible.infos` up to the models: appends the models added since (their ranks
-/// among all); a model removed keeps its place, unused, until the removed are as many
-/// as the rest; a model changed, or that many removed, derives every model's anew.
-/// Deriving one orders its leaves (`ModelSlot::of`); group impostors are published and
-/// released a few at a time, to thousands of models, and deriving them all at each took
-/// the Value stage 14 ms at 1 400 models.
+/// Brings `visible.infos` up to the models ([`FollowedModels`]): appends the infos of
+/// the models added since and ranks them among all. Deriving one orders its leaves
+/// (`ModelSlot::of`); group impostors are published and released a few at a time, to
+/// thousands of models, and deriving them all at each took the Value stage 14 ms at
+/// 1 400 models.
 fn refresh_infos(
     visible: &mut VisibleObjects,
     models: &Assets<TreeModel>,
-    costs: &PrimitiveCosts,
-    version: &TreeModelsVersion,
+    cost_model: &CostModel,
+    version: TreeModelsVersion,
 ) {
-    visible.info_index.retain(|&id, _| models.contains(id));
-    let removed = visible.infos.len() - visible.info_index.len();
-    if visible.infos_edited != Some(version.edited) || removed > visible.info_index.len() {
+    let Some(change) = visible.models.follow(models, version) else {
+        return;
+    };
+    if change.anew {
         visible.infos.clear();
-        visible.info_index.clear();
-        visible.infos_edited = Some(version.edited);
-        visible.infos_generation += 1;
     }
-    for (id, model) in models.iter() {
-        if !visible.info_index.contains_key(&id) {
-            visible.info_index.insert(id, visible.infos.len() as u32);
-            visible.infos.push(model_info(id, model, costs));
-        }
+    let mut costs = None;
+    for (id, model) in change.added() {
+        let costs = costs
+            .get_or_insert_with(|| PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0));
+        visible.infos.push(model_info(id, model, costs));
     }
     rank_infos(&mut visible.infos);
 }
@@ -428,11 +418,7 @@ fn value_trees(
     models: &Assets<TreeModel>,
     version: &TreeModelsVersion,
 ) {
-    if visible.infos_version != Some(version.any) {
-        let costs = PrimitiveCosts::from_calibration(cost_model.calibration(), 1.0);
-        refresh_infos(visible, models, &costs, version);
-        visible.infos_version = Some(version.any);
-    }
+    refresh_infos(visible, models, cost_model, *version);
     // Culling's answer is indexed by the table it was built for (the same, once models
     // have loaded: both are kept in the same frame).
     if culling.layout_version() != Some(table.layout_version()) {
@@ -444,10 +430,10 @@ fn value_trees(
         table.layout_version(),
         table.transforms_version(),
         table.models_version(),
-        visible.infos_generation,
+        visible.models.generation(),
     );
     if visible.placed_key != Some(placed_key) {
-        visible.placed = place_trees(table, &visible.infos, &visible.info_index);
+        visible.placed = place_trees(table, &visible.infos, &visible.models);
         visible.placed_key = Some(placed_key);
     }
     // Far trees decided in turn (`FrameBudget::far_refresh`).
@@ -708,11 +694,14 @@ fn value_ladders(
 mod tests {
     use super::*;
     use crate::testing::species;
+    use bevy::platform::collections::HashMap;
 
+    /// `refresh_infos` after a change of the models (`edited`: the in-place changes).
     fn refreshed(visible: &mut VisibleObjects, models: &Assets<TreeModel>, edited: u64) {
-        let costs = PrimitiveCosts::from_calibration(CostModel::default().calibration(), 1.0);
-        let version = TreeModelsVersion { any: 0, edited };
-        refresh_infos(visible, models, &costs, &version);
+        static CHANGES: core::sync::atomic::AtomicU64 = core::sync::atomic::AtomicU64::new(1);
+        let any = CHANGES.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+        let version = TreeModelsVersion { any, edited };
+        refresh_infos(visible, models, &CostModel::default(), version);
     }
 
     /// Each model's index and ranks after `refresh_infos`, by id.
@@ -738,11 +727,11 @@ mod tests {
         let mut visible = VisibleObjects::default();
         refreshed(&mut visible, &models, 0);
         let before = ranks(&visible);
-        let generation = visible.infos_generation;
+        let generation = visible.models.generation();
         let broad = models.add(species("broad")).id();
         refreshed(&mut visible, &models, 0);
         let after = ranks(&visible);
-        assert_eq!(visible.infos_generation, generation, "appended");
+        assert_eq!(visible.models.generation(), generation, "appended");
         for id in [slender, grand] {
             assert_eq!(
                 after[&id].0, before[&id].0,
@@ -763,18 +752,18 @@ mod tests {
         // A model removed keeps its place until the removed are as many as the rest.
         models.remove(grand);
         refreshed(&mut visible, &models, 0);
-        assert_eq!(visible.infos_generation, generation, "kept");
-        assert_eq!((visible.infos.len(), visible.info_index.len()), (3, 2));
+        assert_eq!(visible.models.generation(), generation, "kept");
+        assert_eq!((visible.infos.len(), visible.models.len()), (3, 2));
         assert_eq!(ranks(&visible)[&broad].0, 2);
         models.remove(slender);
         refreshed(&mut visible, &models, 0);
-        assert_ne!(visible.infos_generation, generation, "derived anew");
-        assert_eq!((visible.infos.len(), visible.info_index.len()), (1, 1));
+        assert_ne!(visible.models.generation(), generation, "derived anew");
+        assert_eq!((visible.infos.len(), visible.models.len()), (1, 1));
         let (index, trunk, leaves) = ranks(&visible)[&broad];
         assert_eq!((index, trunk.min(leaves), trunk.max(leaves)), (0, 0, 1));
         // A model changed derives them all anew.
-        let generation = visible.infos_generation;
+        let generation = visible.models.generation();
         refreshed(&mut visible, &models, 1);
-        assert_ne!(visible.infos_generation, generation);
+        assert_ne!(visible.models.generation(), generation);
     }
 }

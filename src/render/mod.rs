@@ -32,7 +32,6 @@ use bevy::camera::{MainPassResolutionOverride, Viewport};
 use bevy::core_pipeline::{Core3dSystems, core_3d::main_opaque_pass_3d, schedule::Core3d};
 use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
 use bevy::math::{Affine3A, FloatOrd};
-use bevy::platform::collections::HashMap;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::render::{
@@ -65,7 +64,7 @@ use crate::draw::{ModelSlot, PrimitiveCounts, TreeDrawList, TreeShading};
 
 use crate::draw::packing::{FrameChunks, GeometryAtlas, PrimitiveKind};
 use crate::instance::{FixedDrawList, ForestInstances, TreeInstance};
-use crate::tree::{NO_RING, TreeModel, TreeModelsVersion};
+use crate::tree::{FollowedModels, NO_RING, TreeModel, TreeModelsVersion};
 use crate::wind::RingOffsetTable;
 use append_buffer::AppendBuffer;
 use batch::{CORNER_INDICES, DrawBatch};
@@ -254,18 +253,13 @@ struct GpuLight {
 /// The frame's records, filled during extraction.
 #[derive(Resource, Default)]
 struct ForestFrame {
-    /// The models' versions the atlas follows ([`TreeModelsVersion`]).
-    geometry_version: Option<u64>,
-    geometry_edited: Option<u64>,
     /// The models added since the last upload, packed after those already uploaded.
     atlas: GeometryAtlas,
     atlas_dirty: bool,
     /// The uploaded atlas is to be let go before `atlas` is (the atlas is packed anew).
     atlas_reset: bool,
-    /// Models removed since the atlas was last packed anew (their geometry is still in
-    /// it).
-    removed_models: usize,
-    slots: HashMap<AssetId<TreeModel>, ModelSlot>,
+    /// Where each model's geometry is in the atlas.
+    slots: ModelSlots,
     light: GpuLight,
     records: FrameRecords,
     /// The last extraction's CPU time, milliseconds.
@@ -298,29 +292,32 @@ impl FrameRecords {
     }
 }
 
-/// Brings the atlas up to the models: the models added since are appended; a model
-/// removed leaves its geometry behind, unused, until the removed are as many as the rest;
-/// a model changed, or that many removed, packs the atlas anew.
-fn follow_models(frame: &mut ForestFrame, models: &Assets<TreeModel>, version: TreeModelsVersion) {
-    if frame.geometry_version == Some(version.any) {
-        return;
+/// Each model's place in the atlas, at its index in `models`.
+#[derive(Default)]
+struct ModelSlots {
+    models: FollowedModels,
+    slots: Vec<ModelSlot>,
+}
+
+impl ModelSlots {
+    fn get(&self, id: AssetId<TreeModel>) -> Option<&ModelSlot> {
+        self.slots.get(self.models.index(id)? as usize)
     }
-    frame.geometry_version = Some(version.any);
-    let before = frame.slots.len();
-    frame.slots.retain(|&id, _| models.contains(id));
-    frame.removed_models += before - frame.slots.len();
-    if frame.geometry_edited != Some(version.edited) || frame.removed_models > frame.slots.len() {
-        frame.geometry_edited = Some(version.edited);
+}
+
+/// Brings the atlas up to the models ([`FollowedModels`]): the models added since are
+/// appended; packed anew, it is uploaded anew.
+fn follow_models(frame: &mut ForestFrame, models: &Assets<TreeModel>, version: TreeModelsVersion) {
+    let Some(change) = frame.slots.models.follow(models, version) else {
+        return;
+    };
+    if change.anew {
         frame.atlas = GeometryAtlas::default();
-        frame.slots.clear();
-        frame.removed_models = 0;
+        frame.slots.slots.clear();
         frame.atlas_reset = true;
     }
-    for (id, model) in models.iter() {
-        if !frame.slots.contains_key(&id) {
-            let slot = frame.atlas.push(model);
-            frame.slots.insert(id, slot);
-        }
+    for (_, model) in change.added() {
+        frame.slots.slots.push(frame.atlas.push(model));
     }
     frame.atlas_dirty = true;
 }
@@ -447,7 +444,7 @@ type ExtractedTree<'a> = (
 /// Adds one tree's records to the frame's, or counts it left out.
 fn extract_tree(
     records: &mut FrameRecords,
-    slots: &HashMap<AssetId<TreeModel>, ModelSlot>,
+    slots: &ModelSlots,
     models: &Assets<TreeModel>,
     moving: Option<(&RingOffsetTable, &ForestInstances)>,
     (entity, instance, global, list, shading, (fixed, local, has_parent)): ExtractedTree,
@@ -457,7 +454,7 @@ fn extract_tree(
     if list.is_some_and(TreeDrawList::is_empty) {
         return;
     }
-    let (Some(slot), Some(model)) = (slots.get(&instance.model.id()), models.get(&instance.model))
+    let (Some(slot), Some(model)) = (slots.get(instance.model.id()), models.get(&instance.model))
     else {
         return;
     };

@@ -5,10 +5,11 @@
 use bevy::app::{App, Plugin, PostUpdate};
 use bevy::asset::AssetEvent;
 use bevy::asset::io::Reader;
-use bevy::asset::{AssetApp, AssetLoader, LoadContext};
+use bevy::asset::{AssetApp, AssetId, AssetLoader, Assets, LoadContext};
 use bevy::ecs::message::MessageReader;
 use bevy::ecs::prelude::{IntoScheduleConfigs, ResMut, Resource};
 use bevy::log::warn;
+use bevy::platform::collections::HashMap;
 use bevy::reflect::TypePath;
 
 use super::NO_RING;
@@ -474,6 +475,98 @@ fn bump_models_version(
     }
     if edited {
         version.edited += 1;
+    }
+}
+
+/// Keeps what is derived from the tree models one by one (packed geometry, per-model
+/// infos) in step with them, as [`TreeModelsVersion`] tells their changes: every model
+/// gets an index in the order it came, and what is derived from it is appended at that
+/// index. A model removed keeps its index, unused, until the removed are as many as the
+/// rest; then, or when a model changed in place, everything is derived anew.
+#[derive(Default)]
+pub(crate) struct FollowedModels {
+    /// The versions followed.
+    any: Option<u64>,
+    edited: Option<u64>,
+    /// Each model's index.
+    index: HashMap<AssetId<TreeModel>, u32>,
+    /// Indices handed out since everything was last derived anew (the removed' included).
+    next: u32,
+    /// How many times everything was derived anew.
+    generation: u64,
+}
+
+impl FollowedModels {
+    /// Brings the indices up to `models` at `version`: `None` when nothing changed;
+    /// otherwise the change, whose [`added`](ModelsChange::added) models are to be derived
+    /// and appended, in order, after what was derived before (or, when it is
+    /// [`anew`](ModelsChange::anew), after nothing).
+    pub(crate) fn follow<'a>(
+        &'a mut self,
+        models: &'a Assets<TreeModel>,
+        version: TreeModelsVersion,
+    ) -> Option<ModelsChange<'a>> {
+        if self.any == Some(version.any) {
+            return None;
+        }
+        self.any = Some(version.any);
+        self.index.retain(|&id, _| models.contains(id));
+        let removed = self.next as usize - self.index.len();
+        let anew = self.edited != Some(version.edited) || removed > self.index.len();
+        if anew {
+            self.edited = Some(version.edited);
+            self.index.clear();
+            self.next = 0;
+            self.generation += 1;
+        }
+        Some(ModelsChange {
+            followed: self,
+            models,
+            anew,
+        })
+    }
+
+    /// Model `id`'s index, if it is loaded.
+    pub(crate) fn index(&self, id: AssetId<TreeModel>) -> Option<u32> {
+        self.index.get(&id).copied()
+    }
+
+    /// How many models are loaded.
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
+        self.index.len()
+    }
+
+    /// How many times everything was derived anew: the indices handed out before are
+    /// void.
+    pub(crate) fn generation(&self) -> u64 {
+        self.generation
+    }
+}
+
+/// A change of the models [`FollowedModels::follow`] found.
+pub(crate) struct ModelsChange<'a> {
+    followed: &'a mut FollowedModels,
+    models: &'a Assets<TreeModel>,
+    /// Everything is to be derived anew: what was derived before is void.
+    pub(crate) anew: bool,
+}
+
+impl<'a> ModelsChange<'a> {
+    /// The models without an index yet (every model, when [`anew`](Self::anew)), each
+    /// given the next index as it is yielded.
+    pub(crate) fn added(self) -> impl Iterator<Item = (AssetId<TreeModel>, &'a TreeModel)> {
+        let Self {
+            followed, models, ..
+        } = self;
+        models.iter().filter(move |&(id, _)| {
+            let new = !followed.index.contains_key(&id);
+            if new {
+                followed.index.insert(id, followed.next);
+                followed.next += 1;
+            }
+            new
+        })
     }
 }
 

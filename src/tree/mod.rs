@@ -17,7 +17,7 @@ mod species;
 pub use analyze::{
     AnalysisOptions, AnalysisWarning, MeshData, TreeAnalysis, TreeAnalysisError, TreePart, analyze,
 };
-pub(crate) use asset::TreeModelsVersion;
+pub(crate) use asset::{FollowedModels, TreeModelsVersion};
 
 pub use asset::{TreeFileError, TreePlugin};
 pub use crown::Crown;
