@@ -188,8 +188,8 @@ impl Default for Calibration {
     /// `pixels` are covered pixels: a line's length × width, a point's size².
     fn default() -> Self {
         Self {
-            adapter: "unknown".into(),
-            driver: "unknown".into(),
+            adapter: UNMEASURED.into(),
+            driver: UNMEASURED.into(),
             triangles: LinearCost {
                 fixed: 2e-4,
                 per_primitive: 1.1e-6,
@@ -243,7 +243,15 @@ pub enum CalibrationError {
     Utf8(#[from] core::str::Utf8Error),
 }
 
+/// The adapter and driver of the built-in default calibration.
+const UNMEASURED: &str = "unknown";
+
 impl Calibration {
+    /// Whether it was measured (on the adapter it names), not the built-in default.
+    pub(crate) fn is_measured(&self) -> bool {
+        self.adapter != UNMEASURED
+    }
+
     /// Parses and validates a calibration.
     pub fn from_ron_str(text: &str) -> Result<Self, CalibrationError> {
         let mut calibration: Self = crate::ron_file::ron_options().from_str(text)?;

@@ -43,7 +43,9 @@ use std::collections::VecDeque;
 use bevy::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::online::{CostFilter, LogSpread, PriorRegression, RobustGate};
+use super::online::{
+    CostFilter, LogSpread, MEASURED_PRIOR_SPREAD, PRIOR_SPREAD, PriorRegression, RobustGate,
+};
 use super::{Calibration, FamilyScales, FamilyTimes, FrameSample, PrimitiveCosts};
 
 /// How the main world's logic `L` and the render world's rendering `R` make a frame:
@@ -262,13 +264,26 @@ impl CostModel {
         let rates = rates.usable();
         let fixed = f64::from(calibration.render_fixed_time());
         // Factors within ×100 of the calibration; the fixed part up to 10 s.
-        let render = CostFilter::new(
+        let mut render = CostFilter::new(
             [fixed.max(1e-4), 1.0, 1.0, 1.0, 1.0, 1.0, 1.0],
             [0.0, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01],
             [10.0, 100.0, 100.0, 100.0, 100.0, 100.0, 100.0],
             rates.speed_seconds,
             rates.costs_seconds,
         );
+        if calibration.is_measured() {
+            // The families' shape is the renderer's; the fixed part is the app's.
+            let family = MEASURED_PRIOR_SPREAD;
+            render = render.with_prior_spreads([
+                PRIOR_SPREAD,
+                family,
+                family,
+                family,
+                family,
+                family,
+                family,
+            ]);
+        }
         let (logic_fixed, logic_slope) = calibration.logic_line();
         let (logic_fixed, logic_slope) = (f64::from(logic_fixed), f64::from(logic_slope));
         let logic = CostFilter::new(
