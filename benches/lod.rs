@@ -159,6 +159,19 @@ impl Planter {
 const REPORT_FRAMES: u32 = 64;
 
 fn stages(c: &mut Criterion) {
+    // `SHERWOOD_COMPUTE_THREADS=n`: the compute task pool with `n` threads (Bevy's
+    // default leaves it one on a 2-core machine), to measure what the stages' parallel
+    // per-object work buys with more cores. Set before any app makes its own pool.
+    if let Some(threads) = std::env::var("SHERWOOD_COMPUTE_THREADS")
+        .ok()
+        .and_then(|n| n.parse().ok())
+    {
+        bevy::tasks::ComputeTaskPool::get_or_init(|| {
+            bevy::tasks::TaskPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+        });
+    }
     let mut group = c.benchmark_group("sherwood_frame");
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(10));
@@ -204,6 +217,9 @@ fn stages(c: &mut Criterion) {
         }
     }
     group.finish();
+    // The stages' per-object work is spread over this pool (`lod::parallel`).
+    let threads = bevy::tasks::ComputeTaskPool::try_get().map_or(0, |pool| pool.thread_num());
+    println!("compute task pool: {threads} threads");
     for (
         name,
         trees,

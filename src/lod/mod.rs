@@ -45,6 +45,7 @@ mod draw_lists;
 mod group_impostors;
 mod hand_out;
 mod overrun;
+mod parallel;
 mod search;
 pub(crate) mod select;
 mod settings;

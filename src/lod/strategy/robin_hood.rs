@@ -4,6 +4,7 @@
 
 use super::{HandOut, Outcome, Strategy};
 use crate::budget::{Fit, RobinHood};
+use crate::lod::parallel;
 use crate::lod::select::Selected;
 use crate::lod::value::Part;
 
@@ -28,9 +29,10 @@ impl Strategy for RobinHoodStrategy {
             ..
         } = hand_out;
         let objects = search.objects;
+        // Every object's floor is its own: computed in parallel where there are cores.
         self.floors.clear();
-        self.floors
-            .extend((0..objects.len()).map(|i| search.floor(i)));
+        self.floors.resize(objects.len(), 0.0);
+        parallel::fill_each(&mut self.floors, |i| search.floor(i));
         // Only each object's last choice (a residue pass offers more time and replaces
         // it) is drawn, priced and learned from: `draw.drawn` holds it.
         let stats = self.robin_hood.distribute_with(
