@@ -2,7 +2,7 @@
 //! [`ComputeTaskPool`] (issue #44): the LOD stages are otherwise serial, and while one
 //! of them runs the other cores wait for it.
 
-use bevy::tasks::{ComputeTaskPool, TaskPool};
+use bevy::tasks::{ComputeTaskPool, ParallelSliceMut, TaskPool};
 
 /// Objects per task: large enough that spawning a task (a few microseconds) is a small
 /// part of its work (a floor is ~0.1 µs), small enough to share a 40 000-object frame
@@ -19,23 +19,20 @@ pub(super) fn fill_each<T: Send>(out: &mut [T], each: impl Fn(usize) -> T + Sync
 
 /// [`fill_each`] on `pool`.
 fn fill_each_on<T: Send>(pool: Option<&TaskPool>, out: &mut [T], each: impl Fn(usize) -> T + Sync) {
-    let pool = pool.filter(|pool| pool.thread_num() > 1 && out.len() > CHUNK);
-    let Some(pool) = pool else {
-        for (i, slot) in out.iter_mut().enumerate() {
-            *slot = each(i);
+    // Chunk `c` of `CHUNK` slots; serially the whole slice is chunk 0.
+    let fill = |c: usize, chunk: &mut [T]| {
+        for (j, slot) in chunk.iter_mut().enumerate() {
+            *slot = each(c * CHUNK + j);
         }
-        return;
     };
-    let each = &each;
-    pool.scope(|scope| {
-        for (c, chunk) in out.chunks_mut(CHUNK).enumerate() {
-            scope.spawn(async move {
-                for (j, slot) in chunk.iter_mut().enumerate() {
-                    *slot = each(c * CHUNK + j);
-                }
-            });
+    match pool.filter(|pool| pool.thread_num() > 1 && out.len() > CHUNK) {
+        Some(pool) => {
+            // (The reference is the slice type the trait is implemented for.)
+            let mut out = out;
+            out.par_chunk_map_mut(pool, CHUNK, fill);
         }
-    });
+        None => fill(0, out),
+    }
 }
 
 #[cfg(test)]

@@ -30,7 +30,6 @@ impl Strategy for RobinHoodStrategy {
         } = hand_out;
         let objects = search.objects;
         // Every object's floor is its own: computed in parallel where there are cores.
-        self.floors.clear();
         self.floors.resize(objects.len(), 0.0);
         parallel::fill_each(&mut self.floors, |i| search.floor(i));
         // Only each object's last choice (a residue pass offers more time and replaces
