@@ -78,7 +78,7 @@ struct FreshHandOut<'a> {
     costs: &'a PrimitiveCosts,
     scales: FamilyScales,
     score: Option<(f32, f32)>,
-    rendering: f32,
+    room: steady::Room,
 }
 
 impl BudgetState {
@@ -95,9 +95,9 @@ impl BudgetState {
             costs,
             scales,
             score,
-            rendering,
+            room,
         } = fresh;
-        let fit = budget.steady.fit(outcome.stats.used, rendering);
+        let fit = budget.steady.fit(outcome.stats.used, room);
         let mut buffers = match self.kept.take() {
             Some(kept) => kept.buffers,
             None => core::mem::take(&mut self.spare),
@@ -153,7 +153,7 @@ struct KeptHandOut {
     trees_drawn: u32,
     /// The hand-out's benefit and its bound, when [`BenefitReport`] scored it.
     score: Option<(f32, f32)>,
-    /// Its price over the rendering time, as handed out and smoothed since.
+    /// How it fills the render world's time, as handed out and smoothed since.
     fit: steady::Fit,
     buffers: KeptBuffers,
 }
@@ -204,20 +204,20 @@ impl KeptHandOut {
                 })
     }
 
-    /// The kept hand-out again, when it still fits `rendering` at this frame's learned
+    /// The kept hand-out again, when it still fits `room` at this frame's learned
     /// costs: its outcome and selection repriced, its score and ladder levels.
     fn reused(
         &mut self,
         budget: &FrameBudget,
         visible: &VisibleObjects,
         scales: FamilyScales,
-        rendering: f32,
+        room: steady::Room,
     ) -> Option<(Outcome, Selection, Option<(f32, f32)>, Vec<Option<u32>>)> {
         let outcome = self.repriced(scales);
         let price = outcome.stats.used;
         budget
             .steady
-            .keeps(&mut self.fit, price, rendering)
+            .keeps(&mut self.fit, price, room)
             .then(|| {
                 let selection = Selection {
                     drawn: outcome.drawn,
@@ -254,7 +254,7 @@ impl KeptHandOut {
     /// This frame's fresh hand-out (`lists`, `drawn`, `outcome`) for the still scene
     /// this one was kept for, blended with it: every tree draws what it drew, but for the
     /// fewest whose fresh drawing takes the price within half the steadiness band around
-    /// `rendering` ([`steady::change_fewest`]). What a tree drew is its list as written
+    /// the rendering time ([`steady::change_fewest`]). What a tree drew is its list as written
     /// (`shown`), what an object drew `state.kept_drawn`. Group impostors are not blended.
     fn blend_into(
         &self,
@@ -270,7 +270,7 @@ impl KeptHandOut {
             lists,
             drawn,
             outcome,
-            rendering,
+            room,
             steady,
         } = fresh;
         let ratio = self.repriced(scales).stats.used / self.outcome.stats.used;
@@ -303,7 +303,7 @@ impl KeptHandOut {
         let blended = steady::change_fewest(
             &state.changes,
             &state.shown,
-            steady.blend_band(rendering),
+            steady.blend_band(room),
             &mut state.order,
             &mut state.keep,
         );
@@ -338,7 +338,7 @@ struct Fresh<'a> {
     lists: &'a mut [TreeDrawList],
     drawn: &'a mut [Selected],
     outcome: &'a mut Outcome,
-    rendering: f32,
+    room: steady::Room,
     steady: SteadySelection,
 }
 
@@ -391,6 +391,8 @@ struct FrameTimes {
     tail_offsets: [f32; 2],
     /// The rendering time left for the trees and ladders.
     rendering: f32,
+    /// The render world's time in the aim, the rendering time one part of it.
+    render_world: f32,
     /// No rendering time is left in the target (in a time-critical mode).
     target_below_logic: bool,
 }
@@ -445,6 +447,7 @@ fn frame_times(
         aim,
         tail_offsets: pacing.calibration.offsets(),
         rendering: (available - fixed - app_meshes.cost).max(0.0),
+        render_world: available,
         target_below_logic: available <= 0.0 && budget.mode.is_time_critical(),
     }
 }
@@ -486,6 +489,10 @@ pub(super) fn hand_out_time(
     let keeping = time_critical && !far.holding();
     let scales = cost_model.family_scales();
     let rendering = (times.rendering - visible.held_parts.cost).max(0.0);
+    let room = steady::Room {
+        rendering,
+        render_world: times.render_world,
+    };
     // A cut aim (after frames over the goal's limit) hands out anew at once.
     let still = keeping
         && !times.aim.cut
@@ -497,7 +504,7 @@ pub(super) fn hand_out_time(
         .kept
         .as_mut()
         .filter(|_| still)
-        .and_then(|kept| kept.reused(&budget, &visible, scales, rendering));
+        .and_then(|kept| kept.reused(&budget, &visible, scales, room));
     let selection_kept = kept.is_some();
     let (mut outcome, score, selection) = match kept {
         Some((outcome, selection, score, mesh_levels)) => {
@@ -542,7 +549,7 @@ pub(super) fn hand_out_time(
             lists: &mut chosen.trees,
             drawn: &mut state.drawn,
             outcome: &mut outcome,
-            rendering,
+            room,
             steady: budget.steady,
         };
         kept.blend_into(fresh, &shown, &mut state.blend, scales);
@@ -569,7 +576,7 @@ pub(super) fn hand_out_time(
                 costs: &costs,
                 scales,
                 score: score.map(|(benefit, bound, _)| (benefit, bound)),
-                rendering,
+                room,
             },
             may_keep,
         );

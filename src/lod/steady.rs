@@ -13,27 +13,33 @@ use crate::cost::{FamilyScales, FamilyTimes};
 
 /// How a still scene keeps its selection ([`FrameBudget::steady`](super::FrameBudget::steady)).
 ///
-/// A fresh hand-out fills some share of the rendering time (its *fit*, the price over
-/// the time: about 1, less when everything fits). Each following frame of the same
-/// scene, the kept selection is priced at that frame's learned costs and its fit,
-/// smoothed over [`smoothing_frames`](Self::smoothing_frames), is compared with the
+/// A fresh hand-out fills some share of the render world's time (its *fit*: the render
+/// world's predicted time with the hand-out's price in place of the rendering time handed
+/// out, over the time it has; about 1, less when everything fits). Each following frame
+/// of the same scene, the kept selection is priced at that frame's learned costs and its
+/// fit, smoothed over [`smoothing_frames`](Self::smoothing_frames), is compared with the
 /// fresh one: the selection is kept while the smoothed fit stays within
 /// `[(1 − below) × fresh, (1 + above) × max(fresh, 1)]`; otherwise the time is handed
 /// out anew. The band follows the aim (the rendering time is this frame's), so a machine
 /// that slows or speeds up by more than the band, or a tail goal that moves its aim, gets
 /// a new hand-out within a few frames and the target is still held.
+///
+/// The band is a share of the render world's time, not of the trees': where the app's
+/// own rendering (its meshes, the fixed part) takes most of the frame, the noise in what
+/// is learned of it moves the trees' rendering time by several times as much as it moves
+/// the frame, and a band on the trees' time alone would hand out anew every few frames.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Reflect)]
 #[serde(default)]
 pub struct SteadySelection {
     /// How far below the fresh fit the smoothed fit may fall (time left unused) before
-    /// the time is handed out again, as a share. Wider than [`above`](Self::above): a
+    /// the time is handed out again, as a share of the render world's time. Wider than [`above`](Self::above): a
     /// still picture gains little from the last few percent of detail and every
     /// hand-out that adds it redraws part of the picture, where an overrun has to be cut
     /// at once. Default: `0.08`.
     pub below: f32,
     /// How far above the fresh fit (or the rendering time, when the fresh hand-out fitted
     /// it) the smoothed fit may rise (a predicted overrun) before the time is handed out
-    /// again, as a share. Default: `0.03`.
+    /// again, as a share of the render world's time. Default: `0.03`.
     pub above: f32,
     /// How much an object's value may change (a share of it) with the scene still
     /// counting as the same: trees swaying in the wind move their bounds a little.
@@ -77,23 +83,22 @@ impl SteadySelection {
         gradual: true,
     };
 
-    /// The fit of a fresh hand-out that costs `price` of `rendering`; `None` when there
-    /// is nothing to keep (steadiness off, or no time or price to compare).
-    pub(crate) fn fit(&self, price: f32, rendering: f32) -> Option<Fit> {
-        let ratio = price / rendering;
-        (self.is_on() && ratio.is_finite() && rendering > 0.0).then_some(Fit {
+    /// The fit of a fresh hand-out that costs `price` in `room`; `None` when there is
+    /// nothing to keep (steadiness off, or no time or price to compare).
+    pub(crate) fn fit(&self, price: f32, room: Room) -> Option<Fit> {
+        let ratio = room.fill(price)?;
+        self.is_on().then_some(Fit {
             fresh: ratio,
             smoothed: ratio,
         })
     }
 
-    /// Whether a selection of `fit` that costs `price` of `rendering` this frame is
-    /// kept; its smoothed fit moves to this frame's.
-    pub(crate) fn keeps(&self, fit: &mut Fit, price: f32, rendering: f32) -> bool {
-        let ratio = price / rendering;
-        if !(self.is_on() && ratio.is_finite() && rendering > 0.0) {
+    /// Whether a selection of `fit` that costs `price` in this frame's `room` is kept;
+    /// its smoothed fit moves to this frame's.
+    pub(crate) fn keeps(&self, fit: &mut Fit, price: f32, room: Room) -> bool {
+        let Some(ratio) = room.fill(price).filter(|_| self.is_on()) else {
             return false;
-        }
+        };
         let frames = if self.smoothing_frames.is_finite() {
             self.smoothing_frames.max(1.0)
         } else {
@@ -106,11 +111,13 @@ impl SteadySelection {
     }
 
     /// Where a blend of a fresh hand-out with a kept one keeps its price: within half
-    /// the band around `rendering`, so that the blend is kept afterwards.
-    pub(crate) fn blend_band(&self, rendering: f32) -> (f32, f32) {
+    /// the band around the rendering time of `room`, so that the blend is kept
+    /// afterwards.
+    pub(crate) fn blend_band(&self, room: Room) -> (f32, f32) {
+        let whole = room.whole();
         (
-            rendering * (1.0 - 0.5 * share(self.below)),
-            rendering * (1.0 + 0.5 * share(self.above)),
+            room.rendering - 0.5 * share(self.below) * whole,
+            room.rendering + 0.5 * share(self.above) * whole,
         )
     }
 
@@ -139,8 +146,33 @@ impl Default for SteadySelection {
     }
 }
 
-/// A kept selection's price over the rendering time: when it was handed out, and
-/// smoothed since.
+/// The time a hand-out's price is measured against: the rendering time handed out to the
+/// trees and ladders, and the render world's whole time in the aim, of which it is a part
+/// (with the fixed part, the app's own meshes and the trees held from earlier frames).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Room {
+    pub(crate) rendering: f32,
+    pub(crate) render_world: f32,
+}
+
+impl Room {
+    /// The render world's time; never less than the rendering time in it.
+    fn whole(&self) -> f32 {
+        self.render_world.max(self.rendering)
+    }
+
+    /// The render world's time with `price` in place of the rendering time, as a share
+    /// of its time (1: the price uses the rendering time exactly); `None` without a time
+    /// or a price to compare.
+    fn fill(&self, price: f32) -> Option<f32> {
+        let whole = self.whole();
+        let fill = (whole - self.rendering + price) / whole;
+        (fill.is_finite() && whole > 0.0 && self.rendering >= 0.0).then_some(fill)
+    }
+}
+
+/// A kept selection's fit (its [`Room::fill`]): when it was handed out, and smoothed
+/// since.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Fit {
     fresh: f32,
@@ -256,6 +288,14 @@ pub(crate) fn rescaled(calibrated: FamilyTimes, scales: FamilyScales) -> FamilyT
 mod tests {
     use super::*;
 
+    /// A render world that is the rendering time alone.
+    fn alone(rendering: f32) -> Room {
+        Room {
+            rendering,
+            render_world: rendering,
+        }
+    }
+
     #[test]
     fn a_selection_is_kept_while_its_smoothed_fit_stays_in_the_band() {
         let steady = SteadySelection {
@@ -263,8 +303,8 @@ mod tests {
             ..SteadySelection::KEEP_WHILE_STILL
         };
         let kept = |fresh: f32, now: f32| {
-            let mut fit = steady.fit(fresh, 1.0).unwrap();
-            steady.keeps(&mut fit, now, 1.0)
+            let mut fit = steady.fit(fresh, alone(1.0)).unwrap();
+            steady.keeps(&mut fit, now, alone(1.0))
         };
         assert!(kept(1.0, 1.0) && kept(1.0, 0.93) && kept(1.0, 1.025));
         assert!(!kept(1.0, 0.91), "too much time left unused");
@@ -277,14 +317,17 @@ mod tests {
         assert!(kept(1.0, 0.96), "the band is wider below than above");
         assert!(kept(1.2, 1.22), "nor could one whose cheapest overran");
         assert!(!kept(1.0, f32::NAN));
-        assert!(steady.fit(1.0, 0.0).is_none() && SteadySelection::OFF.fit(1.0, 1.0).is_none());
+        assert!(
+            steady.fit(1.0, alone(0.0)).is_none()
+                && SteadySelection::OFF.fit(1.0, alone(1.0)).is_none()
+        );
         let odd = SteadySelection {
             below: f32::NAN,
             above: -1.0,
             ..steady
         };
         assert!(
-            odd.fit(1.0, 1.0).is_none(),
+            odd.fit(1.0, alone(1.0)).is_none(),
             "shares that are not finite or negative are 0"
         );
     }
@@ -292,15 +335,46 @@ mod tests {
     #[test]
     fn noise_is_smoothed_and_a_lasting_change_leaves_the_band_within_a_few_frames() {
         let steady = SteadySelection::KEEP_WHILE_STILL;
-        let mut fit = steady.fit(1.0, 1.0).unwrap();
+        let mut fit = steady.fit(1.0, alone(1.0)).unwrap();
         // Alternating ±8%: each frame alone would leave the band.
         for k in 0..40 {
             let price = if k % 2 == 0 { 1.08 } else { 0.92 };
-            assert!(steady.keeps(&mut fit, price, 1.0), "frame {k}");
+            assert!(steady.keeps(&mut fit, price, alone(1.0)), "frame {k}");
         }
         // The machine 15% slower from now on.
-        let left = (1..=20).find(|_| !steady.keeps(&mut fit, 1.15, 1.0));
+        let left = (1..=20).find(|_| !steady.keeps(&mut fit, 1.15, alone(1.0)));
         assert!(left.is_some_and(|k| k <= 3), "{left:?}");
+    }
+
+    #[test]
+    fn the_band_is_a_share_of_the_render_worlds_time() {
+        let steady = SteadySelection {
+            smoothing_frames: 1.0,
+            ..SteadySelection::KEEP_WHILE_STILL
+        };
+        // The trees have 1 of a render world of 5.
+        let room = |rendering: f32| Room {
+            rendering,
+            render_world: 5.0,
+        };
+        let kept = |rendering: f32, price: f32| {
+            let mut fit = steady.fit(1.0, room(1.0)).unwrap();
+            steady.keeps(&mut fit, price, room(rendering))
+        };
+        assert!(
+            kept(1.3, 1.0),
+            "30% more rendering time is 6% of the render world: within the band below"
+        );
+        assert!(kept(0.9, 1.0) && kept(1.0, 1.1));
+        assert!(!kept(1.5, 1.0), "10% of the render world left unused");
+        assert!(!kept(1.0, 1.2), "an overrun of 4% of the render world");
+        let (low, high) = steady.blend_band(room(1.0));
+        assert!((low - 0.8).abs() < 1e-6 && (high - 1.075).abs() < 1e-6, "{low} {high}");
+        // No time left for the trees: their floors are kept while the render world's
+        // time holds.
+        let mut fit = steady.fit(0.5, room(0.0)).unwrap();
+        assert!(steady.keeps(&mut fit, 0.5, room(0.0)));
+        assert!(steady.fit(1.0, Room { rendering: 0.0, render_world: 0.0 }).is_none());
     }
 
     #[test]
