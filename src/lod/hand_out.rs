@@ -11,6 +11,7 @@ use super::aim::{AimCalibration, AimInputs};
 use super::alerts::{self, TargetWatch};
 use super::draw_lists::ChosenLists;
 use super::group_impostors::GroupImpostors;
+use super::logic_hitch::{self, UsualLogic};
 use super::search::{self, Choices, ObjectSearch};
 use super::select::{PrimitiveCosts, Selected};
 use super::steady;
@@ -30,13 +31,15 @@ use crate::draw::{PrimitiveCounts, TreeDrawList};
 use crate::tree::TreeModel;
 use crate::view::LodView;
 
-/// What the display and its pacing tell the aim, and the aim's calibration.
+/// What the display and its pacing tell the aim, the aim's calibration, and the usual
+/// logic the rendering time is never cut below for a hitch.
 #[derive(SystemParam)]
 pub(super) struct Pacing<'w, 's> {
     display: Option<Res<'w, DisplayTiming>>,
     measured: Option<Res<'w, MeasuredPacing>>,
     vsync: Option<Res<'w, VsyncSettings>>,
     calibration: Local<'s, AimCalibration>,
+    usual_logic: Local<'s, UsualLogic>,
 }
 
 /// The tree models, and what the hierarchical strategy reads beside the objects.
@@ -215,24 +218,21 @@ impl KeptHandOut {
     ) -> Option<(Outcome, Selection, Option<(f32, f32)>, Vec<Option<u32>>)> {
         let outcome = self.repriced(scales);
         let price = outcome.stats.used;
-        budget
-            .steady
-            .keeps(&mut self.fit, price, room)
-            .then(|| {
-                let selection = Selection {
-                    drawn: outcome.drawn,
-                    predicted: outcome.stats.used,
-                    counts: self.counts,
-                    visible_instances: visible.instances_in_view(),
-                    trees_drawn: self.trees_drawn,
-                };
-                (
-                    outcome,
-                    selection,
-                    self.score,
-                    self.buffers.mesh_levels.clone(),
-                )
-            })
+        budget.steady.keeps(&mut self.fit, price, room).then(|| {
+            let selection = Selection {
+                drawn: outcome.drawn,
+                predicted: outcome.stats.used,
+                counts: self.counts,
+                visible_instances: visible.instances_in_view(),
+                trees_drawn: self.trees_drawn,
+            };
+            (
+                outcome,
+                selection,
+                self.score,
+                self.buffers.mesh_levels.clone(),
+            )
+        })
     }
 
     /// The kept outcome priced at this frame's learned costs.
@@ -408,7 +408,9 @@ fn frame_times(
 ) -> FrameTimes {
     // This frame's logic so far is known: only the rest of the update is predicted.
     let logic_so_far = clock.elapsed();
-    let logic = logic_so_far + cost_model.logic_after_budget(visible_instances);
+    let after_budget = cost_model.logic_after_budget(visible_instances);
+    let logic = logic_so_far + after_budget;
+    let usual_logic = pacing.usual_logic.observe(logic_so_far) + after_budget;
     let target = budget.target_ms.max(0.0) / 1000.0;
     let inputs = AimInputs {
         display: pacing.display.as_deref(),
@@ -424,7 +426,7 @@ fn frame_times(
         budget.goal,
         &inputs,
     );
-    let available = cost_model.overlap().rendering_time(logic, aim.work);
+    let available = logic_hitch::rendering_time(cost_model.overlap(), logic, usual_logic, aim.work);
     // The app's own visible meshes are not budgeted but predicted: they take their time
     // first, like the fixed part.
     let meshes = app_mesh_load.draws as f32 * costs.mesh_draw

@@ -44,6 +44,7 @@ mod diagnostics;
 mod draw_lists;
 mod group_impostors;
 mod hand_out;
+mod logic_hitch;
 mod overrun;
 mod parallel;
 mod search;

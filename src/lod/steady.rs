@@ -369,12 +369,25 @@ mod tests {
         assert!(!kept(1.5, 1.0), "10% of the render world left unused");
         assert!(!kept(1.0, 1.2), "an overrun of 4% of the render world");
         let (low, high) = steady.blend_band(room(1.0));
-        assert!((low - 0.8).abs() < 1e-6 && (high - 1.075).abs() < 1e-6, "{low} {high}");
+        assert!(
+            (low - 0.8).abs() < 1e-6 && (high - 1.075).abs() < 1e-6,
+            "{low} {high}"
+        );
         // No time left for the trees: their floors are kept while the render world's
         // time holds.
         let mut fit = steady.fit(0.5, room(0.0)).unwrap();
         assert!(steady.keeps(&mut fit, 0.5, room(0.0)));
-        assert!(steady.fit(1.0, Room { rendering: 0.0, render_world: 0.0 }).is_none());
+        assert!(
+            steady
+                .fit(
+                    1.0,
+                    Room {
+                        rendering: 0.0,
+                        render_world: 0.0
+                    }
+                )
+                .is_none()
+        );
     }
 
     #[test]

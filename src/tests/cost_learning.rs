@@ -961,6 +961,31 @@ fn a_still_camera_keeps_its_selection_when_the_trees_are_a_small_part_of_the_fra
     );
 }
 
+/// A hitch in the app's own update (one frame's logic before the Budget stage far past
+/// the target) makes that frame late whatever is drawn: a still scene's trees keep what
+/// they drew, where handing out only what the hitch left would drop every tree to its
+/// floor for that frame and restore it the next (a flash over the whole forest).
+#[test]
+fn a_hitch_in_the_apps_logic_does_not_drop_the_forest_to_its_floors() {
+    #[derive(Resource)]
+    struct Hitch(std::time::Duration);
+    let _measuring = common::measuring();
+    let (_, mut app, _) = list_changes_at_a_still_camera(SteadySelection::KEEP_WHILE_STILL, 10);
+    let before = all_lists(&mut app);
+    // 150 ms of the app's own logic at a 60 ms target, once.
+    app.insert_resource(Hitch(std::time::Duration::from_millis(150)));
+    app.add_systems(First, |mut hitch: ResMut<Hitch>| {
+        std::thread::sleep(core::mem::take(&mut hitch.0));
+    });
+    Driver::new(0.0).frame(&mut app, &MACHINE);
+    let d = app.world().resource::<LodDiagnostics>().clone();
+    assert!(d.logic_ms > 100.0, "the hitch was not seen: {d:?}");
+    assert!(
+        d.render_budget_ms > 0.0 && all_lists(&mut app) == before,
+        "a hitch changed the forest: {d:?}"
+    );
+}
+
 /// A still camera whose machine turns 15% slower: the kept selection leaves its band
 /// and is handed out anew within a few frames, and the new selection fits; gradually
 /// (the default), only the trees the price needs change, at most two thirds as many as

@@ -85,6 +85,10 @@ pub struct Args {
     /// Over how many frames a kept selection's fit is smoothed (default: the crate's).
     #[arg(long, value_name = "N", value_parser = positive, allow_negative_numbers = true, conflicts_with = "no_steady")]
     pub steady_frames: Option<f32>,
+    /// The time constant of the learned machine speed, seconds
+    /// (`LearningRates::speed_seconds`; default: the crate's).
+    #[arg(long, value_name = "S", value_parser = positive, allow_negative_numbers = true)]
+    pub speed_seconds: Option<f32>,
     /// Cut the aim at once after N consecutive frames over the goal's limit
     /// (`FrameBudget::overrun_cut`; 0: never, the crate's default).
     #[arg(long, value_name = "N", default_value_t = 0)]

@@ -12,7 +12,7 @@ use bevy::render::renderer::RenderDevice;
 use bevy::render::{Render, RenderApp, RenderSystems};
 use bevy::window::{ExitCondition, PresentMode, WindowResolution};
 use bevy::winit::WinitPlugin;
-use bevy_sherwood::cost::CostSettings;
+use bevy_sherwood::cost::{CostSettings, LearningRates};
 use bevy_sherwood::lod::BenefitReport;
 use bevy_sherwood::prelude::*;
 use bevy_sherwood::render::{
@@ -96,6 +96,12 @@ pub fn run(mut args: Args) -> AppExit {
     .insert_resource(CostSettings {
         calibration: args.calibration_choice(),
         online: !args.no_correction,
+        rates: LearningRates {
+            speed_seconds: args
+                .speed_seconds
+                .unwrap_or(LearningRates::default().speed_seconds),
+            ..default()
+        },
         ..default()
     })
     .init_resource::<Run>()
