@@ -85,6 +85,13 @@ pub struct Args {
     /// Over how many frames a kept selection's fit is smoothed (default: the crate's).
     #[arg(long, value_name = "N", value_parser = positive, allow_negative_numbers = true, conflicts_with = "no_steady")]
     pub steady_frames: Option<f32>,
+    /// A hitch in the app's own logic: a busy `Update` system of S ms every
+    /// `--hitch-every` frames (default: none).
+    #[arg(long, value_name = "S", value_parser = positive, allow_negative_numbers = true)]
+    pub hitch_ms: Option<f32>,
+    /// Frames between two hitches of `--hitch-ms`.
+    #[arg(long, value_name = "N", default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..))]
+    pub hitch_every: u32,
     /// The time constant of the learned machine speed, seconds
     /// (`LearningRates::speed_seconds`; default: the crate's).
     #[arg(long, value_name = "S", value_parser = positive, allow_negative_numbers = true)]

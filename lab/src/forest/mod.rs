@@ -138,6 +138,7 @@ pub fn run(mut args: Args) -> AppExit {
                 scene::place_boulders,
                 camera::follow_path,
                 measure::measure,
+                app_hitch,
             )
                 .chain(),
         )
@@ -151,6 +152,21 @@ pub fn run(mut args: Args) -> AppExit {
         );
     }
     app.insert_resource(args).run()
+}
+
+/// The app's own logic hitching (`--hitch-ms`): busy for that long every
+/// `--hitch-every` frames.
+fn app_hitch(args: Res<Args>, mut frame: Local<u32>) {
+    *frame += 1;
+    let Some(ms) = args.hitch_ms else {
+        return;
+    };
+    if (*frame).is_multiple_of(args.hitch_every) {
+        let begun = std::time::Instant::now();
+        while begun.elapsed().as_secs_f32() * 1000.0 < ms {
+            std::hint::spin_loop();
+        }
+    }
 }
 
 /// Bevy's default plugins: a window (presenting without vsync unless one is emulated:
