@@ -102,7 +102,6 @@ pub fn run(mut args: Args) -> AppExit {
                 .unwrap_or(LearningRates::default().speed_seconds),
             ..default()
         },
-        ..default()
     })
     .init_resource::<Run>()
     .add_systems(Startup, scene::setup);
