@@ -18,7 +18,7 @@ use bevy_sherwood::cost::CostModel;
 use bevy_sherwood::display as deadline;
 use bevy_sherwood::prelude::*;
 
-use crate::forest::{Mode, positive};
+use crate::forest::{Mode, busy_for, positive};
 
 /// The user-app harness's command line.
 #[derive(clap::Args, Resource, Clone, Debug)]
@@ -167,10 +167,7 @@ fn game_logic(options: Res<Args>, measured: Res<Measured>) {
     let (start, end) = events(&options);
     let frame = measured.periods.len();
     if options.step_ms > 0.0 && (start..end).contains(&frame) {
-        let begun = std::time::Instant::now();
-        while begun.elapsed().as_secs_f32() * 1000.0 < options.step_ms {
-            std::hint::spin_loop();
-        }
+        busy_for(options.step_ms);
     }
 }
 

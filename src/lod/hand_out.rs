@@ -397,6 +397,17 @@ struct FrameTimes {
     target_below_logic: bool,
 }
 
+impl FrameTimes {
+    /// The rendering time left for the objects decided this frame (the trees held from
+    /// earlier frames, `held` seconds, keep theirs), within the render world's time.
+    fn room(&self, held: f32) -> steady::Room {
+        steady::Room {
+            rendering: (self.rendering - held).max(0.0),
+            render_world: self.render_world,
+        }
+    }
+}
+
 fn frame_times(
     budget: &FrameBudget,
     cost_model: &CostModel,
@@ -490,11 +501,8 @@ pub(super) fn hand_out_time(
     let time_critical = budget.mode.is_time_critical();
     let keeping = time_critical && !far.holding();
     let scales = cost_model.family_scales();
-    let rendering = (times.rendering - visible.held_parts.cost).max(0.0);
-    let room = steady::Room {
-        rendering,
-        render_world: times.render_world,
-    };
+    let room = times.room(visible.held_parts.cost);
+    let rendering = room.rendering;
     // A cut aim (after frames over the goal's limit) hands out anew at once.
     let still = keeping
         && !times.aim.cut

@@ -32,10 +32,10 @@ use crate::cost::{FamilyScales, FamilyTimes};
 #[serde(default)]
 pub struct SteadySelection {
     /// How far below the fresh fit the smoothed fit may fall (time left unused) before
-    /// the time is handed out again, as a share of the render world's time. Wider than [`above`](Self::above): a
-    /// still picture gains little from the last few percent of detail and every
-    /// hand-out that adds it redraws part of the picture, where an overrun has to be cut
-    /// at once. Default: `0.08`.
+    /// the time is handed out again, as a share of the render world's time. Wider than
+    /// [`above`](Self::above): a still picture gains little from the last few percent of
+    /// detail and every hand-out that adds it redraws part of the picture, where an
+    /// overrun has to be cut at once. Default: `0.08`.
     pub below: f32,
     /// How far above the fresh fit (or the rendering time, when the fresh hand-out fitted
     /// it) the smoothed fit may rise (a predicted overrun) before the time is handed out

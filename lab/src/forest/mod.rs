@@ -161,10 +161,16 @@ fn app_hitch(args: Res<Args>, mut frame: Local<u32>) {
         return;
     };
     if (*frame).is_multiple_of(args.hitch_every) {
-        let begun = std::time::Instant::now();
-        while begun.elapsed().as_secs_f32() * 1000.0 < ms {
-            std::hint::spin_loop();
-        }
+        busy_for(ms);
+    }
+}
+
+/// Keeps this thread busy for `ms` milliseconds: the app's own logic, as a game's
+/// systems take time (a sleep would leave the core to the render world).
+pub fn busy_for(ms: f32) {
+    let begun = std::time::Instant::now();
+    while begun.elapsed().as_secs_f32() * 1000.0 < ms {
+        std::hint::spin_loop();
     }
 }
 
