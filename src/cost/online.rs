@@ -192,11 +192,21 @@ impl RobustGate {
     }
 }
 
+/// How many deviations from the mean one observation of a [`LogSpread`] counts for at
+/// most. At a still camera the tail goal's aim follows the spread: with a cap of 4, one
+/// frame twice as long among frames that scatter by 15% opened the spread by a fifth and
+/// cut the aim by a tenth at once, handing out anew (27% of a still camera's hand-outs
+/// followed such an aim step, `docs/shimmer.md`). At 2.5 a normal scatter is still
+/// learned within about 2% of its deviation (the quantile's calibration takes up the
+/// rest), and a scatter that grows fourfold is followed within about 20 frames (each
+/// frame may widen it by ~7% at 20 frames a second).
+const SPREAD_CAP: f32 = 2.5;
+
 /// How far measured times scatter around their predictions: an exponentially weighted
 /// mean and standard deviation of `ln(measured / predicted)` over about
 /// [`LogSpread::seconds`], so a change of the machine's noise is followed within about
-/// that long. Each observation is capped at four deviations from the mean, so that one
-/// stall does not open the spread for the frames after it.
+/// that long. Each observation is capped at [`SPREAD_CAP`] deviations from the mean, so
+/// that one stall does not open the spread for the frames after it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct LogSpread {
     mean: f32,
@@ -243,7 +253,10 @@ impl LogSpread {
         }
         let sigma = self.sigma();
         let x = (measured / predicted).ln();
-        let x = x.clamp(self.mean - 4.0 * sigma, self.mean + 4.0 * sigma);
+        let x = x.clamp(
+            self.mean - SPREAD_CAP * sigma,
+            self.mean + SPREAD_CAP * sigma,
+        );
         let alpha = 1.0 - (-dt / self.seconds).exp();
         let d = x - self.mean;
         self.mean += alpha * d;
@@ -948,6 +961,27 @@ mod tests {
         spread.observe(0.03, 0.0, dt);
         spread.observe(0.03, 0.03, f32::INFINITY);
         assert_eq!(spread, before);
+    }
+
+    /// A still camera's noisy frames (15% scatter), then one frame twice as long as
+    /// predicted: the spread opens by less than a tenth, so the tail goal's aim does not
+    /// step down for one frame (with the cap at four deviations it opened by a fifth).
+    #[test]
+    fn one_long_frame_barely_opens_a_noisy_spread() {
+        let mut normal = normals();
+        let mut spread = LogSpread::new(0.15, 0.005, crate::cost::model::FRAME_SPREAD_SECONDS);
+        let dt = 0.05;
+        for _ in 0..400 {
+            spread.observe(0.030, 0.030 * (0.15 * normal()).exp(), dt);
+        }
+        let before = spread.sigma();
+        assert!((0.12..0.18).contains(&before), "σ 0.15 learned as {before}");
+        spread.observe(0.030, 0.060, dt);
+        let after = spread.sigma();
+        assert!(
+            after < 1.1 * before,
+            "one frame twice as long opened the spread {before} → {after}"
+        );
     }
 
     /// Frame times with a long tail (3% noise, and one frame in 25 a hitch of an

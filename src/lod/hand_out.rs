@@ -502,7 +502,6 @@ pub(super) fn hand_out_time(
     let keeping = time_critical && !far.holding();
     let scales = cost_model.family_scales();
     let room = times.room(visible.held_parts.cost);
-    let rendering = room.rendering;
     // A cut aim (after frames over the goal's limit) hands out anew at once.
     let still = keeping
         && !times.aim.cut
@@ -510,60 +509,26 @@ pub(super) fn hand_out_time(
             .kept
             .as_ref()
             .is_some_and(|kept| kept.is_still(&budget, &visible, &ladders.entries, report.enabled));
-    let kept = state
-        .kept
-        .as_mut()
-        .filter(|_| still)
-        .and_then(|kept| kept.reused(&budget, &visible, scales, room));
-    let selection_kept = kept.is_some();
-    let (mut outcome, score, selection) = match kept {
-        Some((outcome, selection, score, mesh_levels)) => {
-            ladders.chosen = mesh_levels;
-            let score = score.map(|(benefit, bound)| (benefit, bound, Duration::ZERO));
-            (outcome, score, Some(selection))
-        }
-        None => {
-            if still && budget.steady.gradual {
-                // The kept hand-out's choices, before the fresh one overwrites them.
-                state.blend.kept_drawn.clone_from(&state.drawn);
-            }
-            let fresh = FreshInputs {
-                budget: &budget,
-                visible: &visible,
-                costs: &costs,
-                rendering,
-                scored_rendering: report.enabled.then_some(times.rendering),
-                far_holding: far.holding(),
-            };
-            let (outcome, score) = hand_out_fresh(
-                fresh,
-                state,
-                &mut chosen,
-                &mut ladders,
-                &mut boxes,
-                &mut strategies,
-            );
-            (outcome, score, None)
-        }
+    let fresh = FreshInputs {
+        budget: &budget,
+        visible: &visible,
+        costs: &costs,
+        rendering: room.rendering,
+        scored_rendering: report.enabled.then_some(times.rendering),
+        far_holding: far.holding(),
     };
-    if still
-        && budget.steady.gradual
-        && !selection_kept
-        && score.is_none()
-        && let Some(kept) = &state.kept
-    {
-        let fresh = Fresh {
-            objects: &visible.objects,
-            trees: &visible.trees,
-            values: &visible.values,
-            lists: &mut chosen.trees,
-            drawn: &mut state.drawn,
-            outcome: &mut outcome,
-            room,
-            steady: budget.steady,
-        };
-        kept.blend_into(fresh, &shown, &mut state.blend, scales);
-    }
+    let sinks = Sinks {
+        chosen: &mut chosen,
+        ladders: &mut ladders,
+        boxes: &mut boxes,
+        strategies: &mut strategies,
+    };
+    let Handed {
+        outcome,
+        score,
+        selection,
+    } = kept_or_fresh(fresh, still.then_some(room), scales, state, sinks, &shown);
+    let selection_kept = selection.is_some();
     let selection = selection.unwrap_or_else(|| {
         Selection::of(
             &visible,
@@ -613,6 +578,86 @@ pub(super) fn hand_out_time(
     };
     if let Some(alert) = state.target.observe(&diagnostics, time.elapsed_secs()) {
         alerts::raise(&mut commands, alert);
+    }
+}
+
+/// Where a hand-out writes: the chosen lists, the ladders' levels, the hierarchical
+/// cut's boxes and the strategies' scratch.
+struct Sinks<'a, 'w> {
+    chosen: &'a mut ChosenLists,
+    ladders: &'a mut LadderObjects,
+    boxes: &'a mut Boxes<'w>,
+    strategies: &'a mut Strategies,
+}
+
+/// This frame's hand-out, and its score with the time the scoring took (with the benefit
+/// report on).
+struct Handed {
+    outcome: Outcome,
+    score: Option<(f32, f32, Duration)>,
+    /// The kept selection, when a still scene kept its hand-out (otherwise derived from
+    /// the chosen lists).
+    selection: Option<Selection>,
+}
+
+/// A still scene (`still`: this frame's room) keeps its hand-out while that still fits;
+/// otherwise the time is handed out anew, and a still scene's fresh hand-out is blended
+/// with the kept one when the steadiness is [`gradual`](SteadySelection::gradual).
+fn kept_or_fresh(
+    fresh: FreshInputs,
+    still: Option<steady::Room>,
+    scales: FamilyScales,
+    state: &mut BudgetState,
+    sinks: Sinks,
+    shown: &Query<&TreeDrawList>,
+) -> Handed {
+    let budget = fresh.budget;
+    let visible = fresh.visible;
+    let kept = state
+        .kept
+        .as_mut()
+        .zip(still)
+        .and_then(|(kept, room)| kept.reused(budget, visible, scales, room));
+    if let Some((outcome, selection, score, mesh_levels)) = kept {
+        sinks.ladders.chosen = mesh_levels;
+        return Handed {
+            outcome,
+            score: score.map(|(benefit, bound)| (benefit, bound, Duration::ZERO)),
+            selection: Some(selection),
+        };
+    }
+    let blend = still.filter(|_| budget.steady.gradual);
+    if blend.is_some() {
+        // The kept hand-out's choices, before the fresh one overwrites them.
+        state.blend.kept_drawn.clone_from(&state.drawn);
+    }
+    let (mut outcome, score) = hand_out_fresh(
+        fresh,
+        state,
+        sinks.chosen,
+        sinks.ladders,
+        sinks.boxes,
+        sinks.strategies,
+    );
+    if let Some(room) = blend.filter(|_| score.is_none())
+        && let Some(kept) = &state.kept
+    {
+        let fresh = Fresh {
+            objects: &visible.objects,
+            trees: &visible.trees,
+            values: &visible.values,
+            lists: &mut sinks.chosen.trees,
+            drawn: &mut state.drawn,
+            outcome: &mut outcome,
+            room,
+            steady: budget.steady,
+        };
+        kept.blend_into(fresh, shown, &mut state.blend, scales);
+    }
+    Handed {
+        outcome,
+        score,
+        selection: None,
     }
 }
 
