@@ -198,8 +198,8 @@ impl RobustGate {
 /// cut the aim by a tenth at once, handing out anew (27% of a still camera's hand-outs
 /// followed such an aim step, `docs/shimmer.md`). At 2.5 a normal scatter is still
 /// learned within about 2% of its deviation (the quantile's calibration takes up the
-/// rest), and a scatter that grows fourfold is followed within about 20 frames (each
-/// frame may widen it by ~7% at 20 frames a second).
+/// rest), and a scatter that grows fourfold is followed within 18–23 frames (each frame
+/// may widen it by 6–8% at 15–20 frames a second, against 17–21% with a cap of 4).
 const SPREAD_CAP: f32 = 2.5;
 
 /// How far measured times scatter around their predictions: an exponentially weighted

@@ -770,8 +770,9 @@ fn the_tail_goal_keeps_its_shares_where_frame_times_have_a_long_tail() {
 /// keeps its share over (5% ± 2 points); the work is aimed lower while the scatter is
 /// high (over a third of the way there within a second — 17 frames of 60 ms — most of
 /// it within three) and higher again once it falls (more slowly: half the way within
-/// four seconds). The stretches are 1 800 frames long: the goal aims inside its share (at
-/// 4%), and over 900 frames the count alone scatters by ±0.65 points about it.
+/// four seconds). Each stretch is counted over its last 1 800 frames: the goal aims
+/// inside its share (at 4%), and over 900 frames the count alone scatters by ±0.65
+/// points about it.
 #[test]
 fn the_tail_goal_follows_a_regime_switch_of_the_machine_s_scatter() {
     const STRETCH: usize = 2400;
